@@ -1,0 +1,365 @@
+"""The ``barsynth`` command line: a thin shell over the library.
+
+Every bad input (unknown model, preset or parameter, a value out of range, an
+unreadable file) ends in one line on stderr naming the parameter, the value, the
+allowed range and the unit, exit status 2, and no file written.
+Heavy modules are imported inside the commands, so ``barsynth --help`` is quick.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import click
+
+from .errors import BarsynthError, ParameterError
+
+AUDIO_FORMATS = {".wav": "WAV", ".flac": "FLAC", ".ogg": "OGG"}
+SUBTYPES = ("PCM_16", "PCM_24", "FLOAT")
+
+
+def _fail(message: str) -> None:
+    click.echo(f"barsynth: error: {message}", err=True)
+    sys.exit(2)
+
+
+class _Group(click.Group):
+    """Turn barsynth's own errors into one line and exit status 2."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except BarsynthError as exc:
+            _fail(str(exc))
+
+
+def _json_out(data: Any) -> None:
+    click.echo(json.dumps(data, indent=2, allow_nan=False, default=_json_default))
+
+
+def _json_default(value: Any) -> Any:
+    import numpy as np
+
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def _finite_or_none(x: float) -> float | None:
+    return x if math.isfinite(x) else None
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="barsynth")
+def main() -> None:
+    """barsynth: physically derived synthesis of vibrating bars.
+
+    \b
+    Examples:
+      barsynth render twang --preset plastic-30cm -o twang.wav
+      barsynth describe twang --set length_m=0.2 --json
+      barsynth analyze twang.wav --json
+    """
+
+
+# -- physics ----------------------------------------------------------------------------
+@main.command()
+@click.option("--material", metavar="NAME", help="A material from `barsynth materials`.")
+@click.option("--youngs-modulus", "youngs_modulus_pa", type=float, metavar="PA",
+              help="Young's modulus E in Pa (instead of --material).")
+@click.option("--density", "density_kg_m3", type=float, metavar="KG_M3",
+              help="Density rho in kg/m^3 (instead of --material).")
+@click.option("--length", "length_m", type=float, required=True, metavar="M", help="Bar length L in m.")
+@click.option("--thickness", "thickness_m", type=float, required=True, metavar="M",
+              help="Thickness h in m (bending direction).")
+@click.option("--bc", "bc", required=True,
+              type=click.Choice(["free-free", "clamped-free", "clamped-clamped", "pinned-pinned",
+                                 "clamped-pinned"]),
+              help="Boundary conditions at the two ends.")
+@click.option("--count", type=int, default=6, show_default=True, help="Number of modes.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, bc, count, as_json):
+    """Mode frequencies of a uniform bar (Euler-Bernoulli).
+
+    \b
+    Example:
+      barsynth modes --material acrylic --length 0.3 --thickness 0.003 --bc free-free
+    """
+    from . import physics
+
+    if material is not None:
+        if youngs_modulus_pa is not None or density_kg_m3 is not None:
+            raise ParameterError("give either --material or --youngs-modulus and --density, not both")
+        mat = physics.material(material)
+        youngs_modulus_pa, density_kg_m3 = mat.youngs_modulus_pa, mat.density_kg_m3
+    elif youngs_modulus_pa is None or density_kg_m3 is None:
+        raise ParameterError("give --material NAME, or both --youngs-modulus PA and --density KG_M3")
+    if not 1 <= count <= 1000:
+        raise ParameterError(f"parameter count = {count} is out of range; allowed: 1 to 1000 modes")
+    freqs = physics.bar_frequencies(
+        youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3,
+        length_m=length_m, thickness_m=thickness_m, bc=bc, count=count,
+    )
+    lams = physics.lambdas(bc, count)
+    if as_json:
+        _json_out({
+            "bc": bc,
+            "youngs_modulus_pa": youngs_modulus_pa,
+            "density_kg_m3": density_kg_m3,
+            "length_m": length_m,
+            "thickness_m": thickness_m,
+            "lambdas": [float(x) for x in lams],
+            "frequencies_hz": [float(f) for f in freqs],
+            "ratios": [float(f / freqs[0]) for f in freqs],
+        })
+        return
+    click.echo(f"{bc} bar, L = {length_m:g} m, h = {thickness_m:g} m, "
+               f"E = {youngs_modulus_pa:g} Pa, rho = {density_kg_m3:g} kg/m^3")
+    click.echo(f"{'n':>3}  {'lambda':>10}  {'frequency (Hz)':>15}  {'ratio':>9}")
+    for n, (lam, f) in enumerate(zip(lams, freqs), start=1):
+        click.echo(f"{n:>3}  {lam:>10.4f}  {f:>15.3f}  {f / freqs[0]:>9.4f}")
+
+
+@main.command()
+def materials() -> None:
+    """The materials table (E, rho, typical Q, source)."""
+    from .physics import materials as all_materials
+
+    for name, mat in all_materials().items():
+        q = f"{mat.typical_q:g}" if mat.typical_q else "-"
+        click.echo(f"{name:<16} E = {mat.youngs_modulus_pa:>9.3g} Pa  "
+                   f"rho = {mat.density_kg_m3:>6.0f} kg/m^3  Q ~ {q:<5}  ({mat.source})")
+
+
+# -- models -----------------------------------------------------------------------------
+def _model(name: str):
+    from .models import get_model
+
+    return get_model(name)
+
+
+def _resolve(model, preset: str | None, assignments: tuple[str, ...]):
+    from .parameters import parse_assignments
+    from .presets import preset_parameters
+
+    layers = []
+    if preset:
+        layers.append(preset_parameters(model.name, preset))
+    layers.append(parse_assignments(assignments))
+    return model.table.resolve(*layers)
+
+
+_preset_option = click.option("--preset", "-p", metavar="P", help="Start from a preset (see `barsynth presets`).")
+_set_option = click.option("--set", "-s", "assignments", multiple=True, metavar="NAME=VALUE",
+                           help="Set a parameter (repeatable); see `barsynth params MODEL`.")
+_rate_option = click.option("--sample-rate", "sample_rate", default="48000", show_default=True,
+                            metavar="HZ", help="Sample rate in Hz.")
+
+
+def _sample_rate(text: str) -> float:
+    from .models.rendering import check_sample_rate
+
+    return check_sample_rate(text)
+
+
+@main.command()
+@click.argument("model_name", metavar="MODEL")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+def params(model_name: str, as_json: bool) -> None:
+    """A model's parameter table: name, unit, range, default, doc."""
+    model = _model(model_name)
+    if as_json:
+        _json_out(model.table.to_json())
+        return
+    click.echo(f"{model.name}: {model.summary}")
+    for p in model.table:
+        default = p.default if not isinstance(p.default, float) else f"{p.default:g}"
+        click.echo(f"  {p.name:<24} {str(default):>10}  [{p.range_text()}]")
+        click.echo(f"  {'':<24} {p.doc}")
+
+
+@main.command()
+@click.argument("model_name", metavar="MODEL")
+@_preset_option
+@_set_option
+@_rate_option
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+def describe(model_name, preset, assignments, sample_rate, as_json):
+    """The resolved parameters and every mode the model will synthesise."""
+    model = _model(model_name)
+    resolved = _resolve(model, preset, assignments)
+    rate = _sample_rate(sample_rate)
+    found = model.describe(resolved, sample_rate=rate)
+    if as_json:
+        _json_out({
+            "model": model.name,
+            "sample_rate": rate,
+            "parameters": model.table.as_dict(resolved),
+            "modes": [m.to_json() for m in found],
+        })
+        return
+    click.echo(f"{model.name} at {rate:g} Hz")
+    for name, value in model.table.as_dict(resolved).items():
+        click.echo(f"  {name:<24} {value:g}" if isinstance(value, float) else f"  {name:<24} {value}")
+    click.echo(f"{'group':<18} {'frequency (Hz)':>15} {'gain':>8} {'T60 (s)':>9}")
+    for m in found:
+        click.echo(f"{m.group:<18} {m.frequency_hz:>15.3f} {m.gain:>8.4f} {m.t60_s:>9.3f}")
+
+
+def _output_format(path: Path) -> str:
+    fmt = AUDIO_FORMATS.get(path.suffix.lower())
+    if fmt is None:
+        raise ParameterError(
+            f"parameter output = {str(path)!r} has an unsupported extension; "
+            f"allowed: {', '.join(AUDIO_FORMATS)}"
+        )
+    return fmt
+
+
+def _check_writable_dir(path: Path, what: str) -> None:
+    parent = path.resolve().parent
+    if not parent.is_dir():
+        raise ParameterError(f"parameter {what} = {str(path)!r}: folder {str(parent)!r} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise ParameterError(f"parameter {what} = {str(path)!r}: folder {str(parent)!r} is not writable")
+
+
+def _atomic_write(path: Path, write) -> None:
+    """Write through a temporary file in the same folder, then rename: never a partial file."""
+    fd, tmp = tempfile.mkstemp(prefix=".barsynth-", suffix=path.suffix, dir=path.resolve().parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+@main.command()
+@click.argument("model_name", metavar="MODEL")
+@_preset_option
+@_set_option
+@click.option("--duration", "duration", default="2.0", show_default=True, metavar="S",
+              help="Duration in seconds.")
+@_rate_option
+@click.option("--seed", default=0, show_default=True, type=int, metavar="N", help="Noise seed.")
+@click.option("--raw", is_flag=True, help="Keep the model's own level (no peak normalisation to -1 dBFS).")
+@click.option("--subtype", type=click.Choice(SUBTYPES), default="PCM_24", show_default=True,
+              help="Sample format of the file.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), metavar="PNG",
+              help="Also draw a waveform + spectrogram PNG.")
+@click.option("-o", "--output", "output", required=True, metavar="FILE",
+              type=click.Path(dir_okay=False, path_type=Path), help="Audio file to write (.wav, .flac, .ogg).")
+def render(model_name, preset, assignments, duration, sample_rate, seed, raw, subtype, plot_path, output):
+    """Render a sound to an audio file.
+
+    \b
+    Examples:
+      barsynth render twang --preset steel-30cm -o steel.wav
+      barsynth render twang --set q=300 --set vibrato_rate_hz=5 --duration 3 -o wobble.wav
+    """
+    from .models.rendering import check_duration
+
+    model = _model(model_name)
+    resolved = _resolve(model, preset, assignments)
+    rate = _sample_rate(sample_rate)
+    seconds = check_duration(duration)
+    fmt = _output_format(output)
+    _check_writable_dir(output, "output")
+    if plot_path is not None:
+        if plot_path.suffix.lower() != ".png":
+            raise ParameterError(f"parameter plot = {str(plot_path)!r} must end in .png")
+        _check_writable_dir(plot_path, "plot")
+    if fmt == "OGG" and subtype != "PCM_24":
+        raise ParameterError(f"parameter subtype = {subtype!r} does not apply to .ogg files")
+    samples = model.render(resolved, duration_s=seconds, sample_rate=rate, seed=seed,
+                           normalize=not raw)
+    import numpy as np
+    import soundfile
+
+    if not np.all(np.isfinite(samples)):  # a defect, never expected: refuse to write it
+        raise BarsynthError("the model produced non-finite samples; nothing written")
+    if raw and np.max(np.abs(samples)) > 1.0 and subtype != "FLOAT":
+        raise ParameterError("the raw render exceeds full scale; use --subtype FLOAT or drop --raw")
+    file_subtype = "VORBIS" if fmt == "OGG" else subtype
+    _atomic_write(output, lambda tmp: soundfile.write(tmp, samples, int(round(rate)),
+                                                      format=fmt, subtype=file_subtype))
+    if plot_path is not None:
+        from .analysis import plot_sound
+
+        _atomic_write(plot_path, lambda tmp: plot_sound(
+            samples, rate, tmp, title=f"{model.name}{' ' + preset if preset else ''}"))
+    click.echo(f"wrote {output} ({seconds:g} s at {rate:g} Hz)")
+
+
+@main.command()
+@click.argument("path", metavar="FILE", type=click.Path(path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+@click.option("--max-partials", default=24, show_default=True, type=int, help="Most partials to report.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), metavar="PNG",
+              help="Also draw a waveform + spectrogram PNG with the partials marked.")
+def analyze(path, as_json, max_partials, plot_path):
+    """Find a sound's partials: frequency, level, T60, and ratios to the lowest."""
+    from .analysis import find_partials, load_audio, partial_ratios
+
+    if not 1 <= max_partials <= 500:
+        raise ParameterError(f"parameter max_partials = {max_partials} is out of range; allowed: 1 to 500")
+    if plot_path is not None:
+        if plot_path.suffix.lower() != ".png":
+            raise ParameterError(f"parameter plot = {str(plot_path)!r} must end in .png")
+        _check_writable_dir(plot_path, "plot")
+    samples, rate = load_audio(path)
+    partials = find_partials(samples, rate, max_partials=max_partials)
+    ratios = partial_ratios(partials) if partials else []
+    if plot_path is not None:
+        from .analysis import plot_sound
+
+        _atomic_write(plot_path, lambda tmp: plot_sound(samples, rate, tmp, title=path.name,
+                                                         partials=partials))
+    if as_json:
+        _json_out({
+            "file": str(path),
+            "sample_rate": rate,
+            "duration_s": len(samples) / rate,
+            "partials": [
+                {
+                    "frequency_hz": p.frequency_hz,
+                    "level_db": _finite_or_none(p.level_db),
+                    "t60_s": _finite_or_none(p.t60_s),
+                    "ratio": float(r),
+                }
+                for p, r in zip(partials, ratios)
+            ],
+        })
+        return
+    click.echo(f"{path}: {len(samples) / rate:.3f} s at {rate:g} Hz, {len(partials)} partials")
+    click.echo(f"{'frequency (Hz)':>15} {'ratio':>9} {'level (dB)':>11} {'T60 (s)':>9}")
+    for p, r in zip(partials, ratios):
+        t60 = f"{p.t60_s:.3f}" if math.isfinite(p.t60_s) else ("inf" if p.t60_s > 0 else "n/a")
+        click.echo(f"{p.frequency_hz:>15.3f} {r:>9.4f} {p.level_db:>11.1f} {t60:>9}")
+
+
+@main.command()
+@click.argument("model_name", metavar="[MODEL]", required=False)
+def presets(model_name: str | None) -> None:
+    """List the presets of one model, or of every model."""
+    from .models import model_names
+    from .presets import load_preset, preset_names
+
+    names = [_model(model_name).name] if model_name else list(model_names())
+    for name in names:
+        for preset in preset_names(name):
+            info = load_preset(name, preset)["preset"]
+            click.echo(f"{name:<8} {preset:<24} {info.get('description', '')}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,27 @@
+"""The one exception family of barsynth.
+
+Every message names what was wrong, the value given, what is allowed and the unit,
+so the CLI (and the web layer) can show it as a single line.
+"""
+
+from __future__ import annotations
+
+
+class BarsynthError(Exception):
+    """Base class of every error barsynth raises on purpose."""
+
+
+class ParameterError(BarsynthError, ValueError):
+    """A parameter is unknown, of the wrong type, or outside its range."""
+
+
+class PresetError(BarsynthError, ValueError):
+    """A preset is unknown or its file is malformed."""
+
+
+class ModelError(BarsynthError, ValueError):
+    """An unknown model name."""
+
+
+class AudioFileError(BarsynthError, OSError):
+    """An audio file is missing, unreadable or of an unsupported kind."""

@@ -1,0 +1,253 @@
+"""Parameter tables: the single description of a model's controls.
+
+One :class:`ParameterTable` per model drives validation, the CLI's ``--set``
+options and ``params`` listing, preset checks, (later) web sliders and the docs.
+Nothing else in barsynth keeps a second copy of a range, default or unit.
+
+A table also builds the model's frozen parameter dataclass, so resolved
+parameters read as attributes (``p.length_m``) and cannot be changed in place.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from .errors import ParameterError
+
+FLOAT = "float"
+INT = "int"
+BOOL = "bool"
+CHOICE = "choice"
+
+_TRUE_WORDS = {"1", "true", "yes", "on"}
+_FALSE_WORDS = {"0", "false", "no", "off"}
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One control of a model.
+
+    ``scale`` is ``"linear"`` or ``"log"``: how a slider (or a random draw)
+    spreads over the range. ``kind`` is ``float``, ``int``, ``bool`` or
+    ``choice``; a choice parameter lists its ``choices`` and keeps ``minimum`` and
+    ``maximum`` as ``None``.
+    """
+
+    name: str
+    unit: str
+    minimum: float | None
+    maximum: float | None
+    default: Any
+    doc: str
+    scale: str = "linear"
+    kind: str = FLOAT
+    choices: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.kind not in (FLOAT, INT, BOOL, CHOICE):
+            raise ValueError(f"{self.name}: unknown kind {self.kind!r}")
+        if self.scale not in ("linear", "log"):
+            raise ValueError(f"{self.name}: unknown scale {self.scale!r}")
+        if self.kind == CHOICE:
+            if self.default not in self.choices:
+                raise ValueError(f"{self.name}: default not among choices")
+        elif self.kind == BOOL:
+            if not isinstance(self.default, bool):
+                raise ValueError(f"{self.name}: bool parameter needs a bool default")
+        else:
+            assert self.minimum is not None and self.maximum is not None
+            if not self.minimum <= self.default <= self.maximum:
+                raise ValueError(f"{self.name}: default outside its range")
+            if self.scale == "log" and self.minimum <= 0:
+                raise ValueError(f"{self.name}: a log scale needs a positive minimum")
+
+    # -- describing ---------------------------------------------------------------
+    @property
+    def unit_label(self) -> str:
+        """The unit as shown to people (``dimensionless`` when there is none)."""
+        return self.unit or "dimensionless"
+
+    def range_text(self) -> str:
+        """The allowed values in words, with the unit."""
+        if self.kind == CHOICE:
+            return "one of " + ", ".join(self.choices)
+        if self.kind == BOOL:
+            return "true or false"
+        return f"{_fmt(self.minimum)} to {_fmt(self.maximum)} {self.unit_label}"
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-ready description (``name, unit, min, max, default, doc`` and more)."""
+        return {
+            "name": self.name,
+            "unit": self.unit,
+            "min": self.minimum,
+            "max": self.maximum,
+            "default": self.default,
+            "doc": self.doc,
+            "scale": self.scale,
+            "kind": self.kind,
+            "choices": list(self.choices) if self.kind == CHOICE else None,
+        }
+
+    # -- validating -----------------------------------------------------------------
+    def validate(self, value: Any) -> Any:
+        """Return ``value`` converted to this parameter's type, or raise ParameterError.
+
+        Strings (from the CLI, a URL or a form) are parsed; numbers must be finite
+        and inside ``[minimum, maximum]``.
+        """
+        if self.kind == CHOICE:
+            text = str(value).strip().lower()
+            if text not in self.choices:
+                raise self._error(value)
+            return text
+        if self.kind == BOOL:
+            if isinstance(value, bool):
+                return value
+            if isinstance(value, (int, float)) and value in (0, 1):
+                return bool(value)
+            text = str(value).strip().lower()
+            if text in _TRUE_WORDS:
+                return True
+            if text in _FALSE_WORDS:
+                return False
+            raise self._error(value)
+        number = self._to_number(value)
+        assert self.minimum is not None and self.maximum is not None
+        if not (math.isfinite(number) and self.minimum <= number <= self.maximum):
+            raise self._error(value)
+        if self.kind == INT:
+            if number != int(number):
+                raise ParameterError(
+                    f"parameter {self.name} = {value!r} must be a whole number "
+                    f"from {self.range_text()}"
+                )
+            return int(number)
+        return float(number)
+
+    def _to_number(self, value: Any) -> float:
+        if isinstance(value, bool):
+            raise self._error(value)
+        if isinstance(value, (int, float)):
+            return float(value)
+        try:
+            return float(str(value).strip())
+        except ValueError:
+            raise ParameterError(
+                f"parameter {self.name} = {value!r} is not a number; "
+                f"allowed: {self.range_text()}"
+            ) from None
+
+    def _error(self, value: Any) -> ParameterError:
+        return ParameterError(
+            f"parameter {self.name} = {value!r} is out of range; "
+            f"allowed: {self.range_text()}"
+        )
+
+    # -- sliders and random draws --------------------------------------------------
+    def to_unit_interval(self, value: float) -> float:
+        """Map a value to [0, 1] along the parameter's scale (for sliders)."""
+        assert self.minimum is not None and self.maximum is not None
+        if self.scale == "log":
+            lo, hi = math.log(self.minimum), math.log(self.maximum)
+            return (math.log(value) - lo) / (hi - lo)
+        return (value - self.minimum) / (self.maximum - self.minimum)
+
+    def from_unit_interval(self, u: float) -> Any:
+        """Inverse of :meth:`to_unit_interval`, clipped into the range."""
+        u = min(1.0, max(0.0, float(u)))
+        if self.kind == CHOICE:
+            return self.choices[min(len(self.choices) - 1, int(u * len(self.choices)))]
+        if self.kind == BOOL:
+            return u >= 0.5
+        assert self.minimum is not None and self.maximum is not None
+        if self.scale == "log":
+            lo, hi = math.log(self.minimum), math.log(self.maximum)
+            value = math.exp(lo + u * (hi - lo))
+        else:
+            value = self.minimum + u * (self.maximum - self.minimum)
+        value = min(self.maximum, max(self.minimum, value))
+        return int(round(value)) if self.kind == INT else value
+
+
+def _fmt(x: float | None) -> str:
+    if x is None:
+        return "?"
+    return f"{x:g}"
+
+
+class ParameterTable:
+    """An ordered collection of :class:`Parameter` for one model."""
+
+    def __init__(self, model: str, parameters: Iterable[Parameter]):
+        self.model = model
+        self.parameters: tuple[Parameter, ...] = tuple(parameters)
+        self._by_name = {p.name: p for p in self.parameters}
+        if len(self._by_name) != len(self.parameters):
+            raise ValueError(f"{model}: duplicate parameter names")
+        fields = [(p.name, Any, dataclasses.field(default=p.default)) for p in self.parameters]
+        cls_name = "".join(part.capitalize() for part in model.replace("-", "_").split("_"))
+        self.dataclass = dataclasses.make_dataclass(
+            cls_name + "Parameters", fields, frozen=True, kw_only=True
+        )
+        self.dataclass.__doc__ = f"Resolved parameters of the {model} model (see its table)."
+
+    def __iter__(self):
+        return iter(self.parameters)
+
+    def __len__(self) -> int:
+        return len(self.parameters)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._by_name
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    def __getitem__(self, name: str) -> Parameter:
+        try:
+            return self._by_name[name]
+        except KeyError:
+            raise ParameterError(
+                f"unknown parameter {name!r} for model {self.model}; "
+                f"known: {', '.join(self.names)}"
+            ) from None
+
+    def defaults(self) -> dict[str, Any]:
+        return {p.name: p.default for p in self.parameters}
+
+    def validate(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Validate a partial mapping; return it converted (unknown names raise)."""
+        return {name: self[name].validate(value) for name, value in values.items()}
+
+    def resolve(self, *layers: Mapping[str, Any] | None) -> Any:
+        """Defaults, overridden by each mapping in turn, validated, as the frozen dataclass."""
+        merged = self.defaults()
+        for layer in layers:
+            if layer:
+                merged.update(self.validate(layer))
+        return self.dataclass(**merged)
+
+    def as_dict(self, resolved: Any) -> dict[str, Any]:
+        """The resolved dataclass as a plain ordered dict."""
+        return {p.name: getattr(resolved, p.name) for p in self.parameters}
+
+    def to_json(self) -> list[dict[str, Any]]:
+        return [p.to_json() for p in self.parameters]
+
+
+def parse_assignments(items: Iterable[str]) -> dict[str, str]:
+    """Parse ``NAME=VALUE`` strings (the CLI's ``--set``) into a dict of strings."""
+    out: dict[str, str] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise ParameterError(f"--set {item!r} must have the form NAME=VALUE")
+        out[name] = value.strip()
+    return out
