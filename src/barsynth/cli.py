@@ -171,11 +171,15 @@ def _sample_rate(text: str) -> float:
 @main.command()
 @click.argument("model_name", metavar="MODEL")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
-def params(model_name: str, as_json: bool) -> None:
+@click.option("--markdown", is_flag=True, help="Print a Markdown table (the docs are made with it).")
+def params(model_name: str, as_json: bool, markdown: bool) -> None:
     """A model's parameter table: name, unit, range, default, doc."""
     model = _model(model_name)
     if as_json:
         _json_out(model.table.to_json())
+        return
+    if markdown:
+        click.echo(model.table.to_markdown(), nl=False)
         return
     click.echo(f"{model.name}: {model.summary}")
     for p in model.table:

@@ -240,6 +240,24 @@ class ParameterTable:
     def to_json(self) -> list[dict[str, Any]]:
         return [p.to_json() for p in self.parameters]
 
+    def to_markdown(self) -> str:
+        """The table as Markdown, for the docs (generated, never edited by hand)."""
+        lines = [
+            "| name | unit | range | default | scale | what it does |",
+            "|---|---|---|---|---|---|",
+        ]
+        for p in self.parameters:
+            if p.kind == CHOICE:
+                span = " / ".join(p.choices)
+            elif p.kind == BOOL:
+                span = "true / false"
+            else:
+                span = f"{_fmt(p.minimum)} to {_fmt(p.maximum)}"
+            default = str(p.default).lower() if p.kind == BOOL else (
+                _fmt(p.default) if isinstance(p.default, float) else str(p.default))
+            lines.append(f"| `{p.name}` | {p.unit or '-'} | {span} | {default} | {p.scale} | {p.doc} |")
+        return "\n".join(lines) + "\n"
+
 
 def parse_assignments(items: Iterable[str]) -> dict[str, str]:
     """Parse ``NAME=VALUE`` strings (the CLI's ``--set``) into a dict of strings."""

@@ -34,8 +34,10 @@ the constants of :mod:`barsynth.models.twang_kernel`:
 * modes fade out over the top 5 % below Nyquist and are silent at or above it;
 * controls are smoothed with a one-pole of ``SMOOTHING_TIME_S`` (5 ms) at the
   control rate (one frame every 2 ms), gains ramp linearly inside a frame;
-* the voice scales each note by ``level / sum(mode gains at the trigger)``, so a
-  note's first peak (all cosines at phase 0) is close to ``level_db``.
+* the voice scales each note by ``level / max(sum of oscillator gains, sum of
+  free-bar gains)`` at the trigger; where the oscillators dominate (every preset)
+  the note's first sample (all cosines at phase 0, noise drive at 0) is exactly
+  ``level_db``.
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ import numpy as np
 
 from ..parameters import BOOL, CHOICE, Parameter, ParameterTable
 from . import twang_kernel as K
+from ..errors import ParameterError
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_sample_rate, normalize_peak, render_voice
 
@@ -132,6 +135,18 @@ def _vector(parameters: Any) -> np.ndarray:
     return vec
 
 
+def _mode_mask(mask: Any) -> np.ndarray:
+    if mask is None:
+        return np.ones(K.N_MODES)
+    values = np.asarray(mask)
+    if values.shape != (K.N_MODES,) or not np.isin(values, (0, 1)).all():
+        raise ParameterError(
+            f"parameter mode_mask = {mask!r} is not allowed; allowed: {K.N_MODES} values, "
+            "each true/1 (sound) or false/0 (mute)"
+        )
+    return values.astype(np.float64)
+
+
 def design_modes(parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:
     """Every mode the twang will synthesise at the trigger (vibrato and slide at rest).
 
@@ -142,7 +157,7 @@ def design_modes(parameters: Any = None, *, sample_rate: float = 48000.0) -> lis
     freqs = np.empty(K.N_MODES)
     gains = np.empty(K.N_MODES)
     alphas = np.empty(K.N_MODES)
-    K.design(_vector(params), _lambdas(), rate, 0.0, 0.0, freqs, gains, alphas)
+    K.design(_vector(params), _lambdas(), np.ones(K.N_MODES), rate, 0.0, 0.0, freqs, gains, alphas)
     modes = []
     for i in range(K.N_MODES):
         if gains[i] > 0.0:
@@ -164,6 +179,10 @@ class TwangVoice:
     smoothed (5 ms) and never clicks. ``process(n)`` returns the next ``n``
     samples; the concatenation of blocks of any sizes equals one long block.
 
+    ``mode_mask`` (18 booleans, in :func:`design_modes` order: 6 full-length
+    cantilever, 6 short cantilever, 6 free-bar) solos or mutes single modes, to
+    listen to or measure one component; by default every mode sounds.
+
     Examples
     --------
     >>> voice = TwangVoice({"length_m": 0.25}, sample_rate=48000, seed=1)
@@ -173,8 +192,10 @@ class TwangVoice:
     >>> more = voice.process(256)
     """
 
-    def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0):
+    def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0,
+                 mode_mask: Any = None):
         self._params = resolve_parameters(MODEL, parameters)
+        self._mode_mask = _mode_mask(mode_mask)
         self._seed = seed
         self._lambdas = _lambdas()
         self.prepare(sample_rate)
@@ -227,8 +248,13 @@ class TwangVoice:
         freqs = np.empty(K.N_MODES)
         gains = np.empty(K.N_MODES)
         alphas = np.empty(K.N_MODES)
-        K.design(self._current, self._lambdas, self.sample_rate, 0.0, 0.0, freqs, gains, alphas)
-        total = float(gains.sum())
+        K.design(self._current, self._lambdas, self._mode_mask, self.sample_rate, 0.0, 0.0,
+                 freqs, gains, alphas)
+        # Scale the note by the larger of the oscillator gains' sum (the first sample,
+        # every cosine at phase 0 with the noise drive at 0, is then exactly the level)
+        # and the free-bar gains' sum (each band peaks near its gain: unit-power noise
+        # of crest ~4 after the x^2 drive's 0.26 rms), so neither group can run away.
+        total = max(float(gains[: K.N_OSC].sum()), float(gains[K.N_OSC:].sum()))
         self._scal[K.S_NORM] = 1.0 / total if total > 0.0 else 0.0
         self._scal[K.S_PHASE] = 0.0
         self._scal[K.S_TIME] = 0.0
@@ -244,7 +270,7 @@ class TwangVoice:
         out = np.empty(check_block_size(num_samples))
         if out.size:
             K.process(out, self._current, self._target, _LOG_MASK, self._smooth_k, self._lambdas,
-                      self.sample_rate, self._frame_len, self._scal, self._rng, self._osc_z,
+                      self._mode_mask, self.sample_rate, self._frame_len, self._scal, self._rng, self._osc_z,
                       self._osc_pow, self._osc_gain, self._band_state, self._band_coef,
                       self._band_env, self._band_pow, self._band_gain, self._freqs,
                       self._gains, self._alphas, self._excitation, self._osc_active,

@@ -89,10 +89,11 @@ def _smoothstep(u):
 
 
 @njit(cache=True)
-def design(params, lambdas, sample_rate, time_s, lfo_sin, freqs, gains, alphas):
+def design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin, freqs, gains, alphas):
     """Fill ``freqs``, ``gains`` (linear) and ``alphas`` (1/s) for the 18 modes.
 
-    ``lambdas`` holds the 6 cantilever then the 6 free-free eigenvalues. Modes are
+    ``lambdas`` holds the 6 cantilever then the 6 free-free eigenvalues;
+    ``mode_mask`` (18 values, 1 = sound, 0 = mute) multiplies the gains. Modes are
     ordered full cantilever (0-5), short cantilever (6-11), free bar (12-17).
     ``time_s`` since the trigger drives the slide, ``lfo_sin`` in [-1, 1] the vibrato.
     Returns the drive-phasor frequency (the full-length fundamental, with vibrato).
@@ -147,6 +148,8 @@ def design(params, lambdas, sample_rate, time_s, lfo_sin, freqs, gains, alphas):
         gains[MODES_PER_GROUP + n] = gains[n] * params[P_SHORT_GAIN]
         gains[n] *= params[P_FULL_GAIN]
         gains[2 * MODES_PER_GROUP + n] *= params[P_FREE_GAIN]
+    for i in range(N_MODES):
+        gains[i] *= mode_mask[i]
 
     # Vibrato: every mode moves by the same factor (the bar keeps its ratios); the
     # loudest mode swings by vibrato_depth_hz, capped at VIBRATO_MAX_RELATIVE_DEPTH.
@@ -192,7 +195,7 @@ def _bandpass(centre_hz, band_q, sample_rate, gains_out, b):
 
 
 @njit(cache=True)
-def _control(params, target, log_mask, smooth_k, lambdas, sample_rate, frame_len,
+def _control(params, target, log_mask, smooth_k, lambdas, mode_mask, sample_rate, frame_len,
              scal, osc_pow, osc_gain, band_coef, band_pow, band_gain,
              freqs, gains, alphas):
     """Start of a control frame: smooth, and if anything moves, design anew."""
@@ -222,7 +225,7 @@ def _control(params, target, log_mask, smooth_k, lambdas, sample_rate, frame_len
             scal[S_DYNAMIC] = 0.0
         return
     lfo_sin = math.sin(2.0 * math.pi * scal[S_LFO_PHASE]) if vibrato else 0.0
-    phasor_hz = design(params, lambdas, sample_rate, time_s, lfo_sin, freqs, gains, alphas)
+    phasor_hz = design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin, freqs, gains, alphas)
     scal[S_PHASE_INC] = phasor_hz / sample_rate
     scal[S_LOWPASS_K] = 1.0 - math.exp(-2.0 * math.pi * params[P_NOISE_CUTOFF] / sample_rate)
     level = 10.0 ** (params[P_LEVEL_DB] / 20.0)
@@ -285,7 +288,7 @@ def _cull(scal, osc_z, osc_gain, band_env, band_gain, osc_active, band_active):
 
 
 @njit(cache=True)
-def process(out, params, target, log_mask, smooth_k, lambdas, sample_rate, frame_len,
+def process(out, params, target, log_mask, smooth_k, lambdas, mode_mask, sample_rate, frame_len,
             scal, rng, osc_z, osc_pow, osc_gain, band_state, band_coef, band_env,
             band_pow, band_gain, freqs, gains, alphas, excitation, osc_active, band_active,
             counts):
@@ -301,7 +304,7 @@ def process(out, params, target, log_mask, smooth_k, lambdas, sample_rate, frame
     while pos < n:
         frame_pos = int(scal[S_FRAME_POS])
         if frame_pos == 0:
-            _control(params, target, log_mask, smooth_k, lambdas, sample_rate, frame_len,
+            _control(params, target, log_mask, smooth_k, lambdas, mode_mask, sample_rate, frame_len,
                      scal, osc_pow, osc_gain, band_coef, band_pow, band_gain,
                      freqs, gains, alphas)
             scal[S_LFO_PHASE] = (scal[S_LFO_PHASE] + params[P_VIB_RATE] * lfo_step) % 1.0
@@ -423,14 +426,25 @@ def _band(dst, diff, k0, m, b, norm, band_state, band_coef, band_env, band_pow, 
     g0 = band_gain[0, b]
     dg = band_gain[1, b]
     epow = band_pow[b, k0:k0 + m]
-    for i in range(m):
-        ya = (b0a * diff[i] - a2 * ya2) - a1 * ya1
-        yb = (b0b * (ya - ya2) - a2 * yb2) - a1 * yb1
-        ya2 = ya1
-        ya1 = ya
-        yb2 = yb1
-        yb1 = yb
-        dst[i] += yb * (env0 * epow[i]) * (g0 + (k0 + i) * dg)
+    if dg == 0.0:
+        c = env0 * g0
+        for i in range(m):
+            ya = (b0a * diff[i] - a2 * ya2) - a1 * ya1
+            yb = (b0b * (ya - ya2) - a2 * yb2) - a1 * yb1
+            ya2 = ya1
+            ya1 = ya
+            yb2 = yb1
+            yb1 = yb
+            dst[i] += yb * (c * epow[i])
+    else:
+        for i in range(m):
+            ya = (b0a * diff[i] - a2 * ya2) - a1 * ya1
+            yb = (b0b * (ya - ya2) - a2 * yb2) - a1 * yb1
+            ya2 = ya1
+            ya1 = ya
+            yb2 = yb1
+            yb1 = yb
+            dst[i] += yb * (env0 * epow[i]) * (g0 + (k0 + i) * dg)
     band_state[0, b] = ya1
     band_state[1, b] = ya2
     band_state[2, b] = yb1
@@ -465,6 +479,9 @@ def _band_pair(dst, diff, k0, m, b, c, norm, band_state, band_coef, band_env, ba
     qdg = band_gain[1, c]
     ppow = band_pow[b, k0:k0 + m]
     qpow = band_pow[c, k0:k0 + m]
+    static = pdg == 0.0 and qdg == 0.0
+    pc = penv * pg0
+    qc = qenv * qg0
     for i in range(m):
         d = diff[i]
         pya = (pb0a * d - pa2 * pya2) - pa1 * pya1
@@ -479,9 +496,11 @@ def _band_pair(dst, diff, k0, m, b, c, norm, band_state, band_coef, band_env, ba
         qya1 = qya
         qyb2 = qyb1
         qyb1 = qyb
-        k = k0 + i
-        dst[i] += pyb * (penv * ppow[i]) * (pg0 + k * pdg)
-        dst[i] += qyb * (qenv * qpow[i]) * (qg0 + k * qdg)
+        if static:
+            dst[i] += pyb * (pc * ppow[i]) + qyb * (qc * qpow[i])
+        else:
+            k = k0 + i
+            dst[i] += pyb * (penv * ppow[i]) * (pg0 + k * pdg) + qyb * (qenv * qpow[i]) * (qg0 + k * qdg)
     band_state[0, b] = pya1
     band_state[1, b] = pya2
     band_state[2, b] = pyb1

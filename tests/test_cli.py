@@ -1,0 +1,222 @@
+"""The command line: every form, real WAV files, and bad input (one line, exit 2, no file)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+from click.testing import CliRunner
+
+from barsynth.cli import main
+from barsynth.models import get_model
+from barsynth.physics import bar_frequencies, lambdas
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run(*args: str):
+    result = CliRunner().invoke(main, list(args), catch_exceptions=False)
+    return result
+
+
+def assert_one_line_error(result, *needles: str) -> None:
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 or lines[0].startswith("Usage:"), result.stderr
+    text = result.stderr.lower()
+    for needle in needles:
+        assert needle.lower() in text, (needle, result.stderr)
+
+
+# -- modes ----------------------------------------------------------------------------
+def test_modes_json_from_material_and_from_constants():
+    r = run("modes", "--material", "acrylic", "--length", "0.3", "--thickness", "0.003",
+            "--bc", "free-free", "--count", "8", "--json")
+    assert r.exit_code == 0
+    data = json.loads(r.stdout)
+    expected = bar_frequencies(youngs_modulus_pa=3.2e9, density_kg_m3=1180.0, length_m=0.3,
+                               thickness_m=0.003, bc="free-free", count=8)
+    assert data["frequencies_hz"] == pytest.approx(expected, rel=1e-12)
+    assert data["lambdas"] == pytest.approx(lambdas("free-free", 8), rel=1e-14)
+    assert 55 < data["frequencies_hz"][0] < 57  # the spec's worked example: ~56 Hz
+    r2 = run("modes", "--youngs-modulus", "3.2e9", "--density", "1180", "--length", "0.15",
+             "--thickness", "0.003", "--bc", "clamped-free", "--json")
+    assert 34 < json.loads(r2.stdout)["frequencies_hz"][0] < 36  # ~35 Hz
+
+
+@pytest.mark.parametrize("bc", ["free-free", "clamped-free", "clamped-clamped", "pinned-pinned", "clamped-pinned"])
+def test_modes_every_boundary_condition_text(bc):
+    r = run("modes", "--material", "steel", "--length", "0.5", "--thickness", "0.01", "--bc", bc)
+    assert r.exit_code == 0 and bc in r.stdout
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--length", "0.3", "--thickness", "0.003", "--bc", "free-free"], "--material"),
+    (["--material", "unobtainium", "--length", "0.3", "--thickness", "0.003", "--bc", "free-free"], "unobtainium"),
+    (["--material", "steel", "--youngs-modulus", "1e9", "--length", "0.3", "--thickness", "0.003",
+      "--bc", "free-free"], "either"),
+    (["--material", "steel", "--length", "-0.3", "--thickness", "0.003", "--bc", "free-free"], "length_m"),
+    (["--material", "steel", "--length", "0.3", "--thickness", "0.003", "--bc", "free-free",
+      "--count", "0"], "count"),
+    (["--material", "steel", "--length", "0.3", "--thickness", "0.003", "--bc", "loose"], "loose"),
+])
+def test_modes_bad_input(args, needle):
+    assert_one_line_error(run("modes", *args), needle)
+
+
+# -- params, describe, presets --------------------------------------------------------
+def test_params_json_lists_every_parameter_with_its_fields():
+    data = json.loads(run("params", "twang", "--json").stdout)
+    names = [p["name"] for p in data]
+    assert names == list(get_model("twang").table.names)
+    for p in data:
+        assert {"name", "unit", "min", "max", "default", "doc"} <= set(p)
+    q = next(p for p in data if p["name"] == "q")
+    assert (q["min"], q["max"], q["default"]) == (50.0, 800.0, 100.0)
+
+
+def test_params_text_and_unknown_model():
+    assert "length_m" in run("params", "twang").stdout
+    assert_one_line_error(run("params", "kazoo"), "kazoo", "twang")
+
+
+def test_describe_json_has_parameters_and_modes():
+    r = run("describe", "twang", "--preset", "steel-30cm", "--set", "q=300", "--sample-rate", "44100", "--json")
+    data = json.loads(r.stdout)
+    assert data["parameters"]["q"] == 300.0
+    assert data["parameters"]["youngs_modulus_pa"] == 200e9
+    assert len(data["modes"]) == 18
+    for m in data["modes"]:
+        assert set(m) == {"group", "frequency_hz", "gain", "t60_s"}
+        assert 0 < m["frequency_hz"] < 22050
+    groups = {m["group"] for m in data["modes"]}
+    assert groups == {"full-cantilever", "short-cantilever", "free-bar"}
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--set", "q=5"], ["q", "5", "50", "800"]),
+    (["--set", "length_m=2"], ["length_m", "0.05", "1", " m"]),
+    (["--set", "nonsense=1"], ["nonsense"]),
+    (["--set", "q"], ["name=value"]),
+    (["--preset", "rubber"], ["rubber", "plastic-30cm"]),
+    (["--sample-rate", "1000"], ["sample_rate", "hz"]),
+])
+def test_describe_bad_input(args, needles):
+    assert_one_line_error(run("describe", "twang", *args), *needles)
+
+
+def test_presets_lists_the_rulers():
+    out = run("presets", "twang").stdout
+    for name in ("plastic-30cm", "wooden-30cm", "steel-30cm"):
+        assert name in out
+    assert "twang" in run("presets").stdout
+    assert "acrylic" in run("materials").stdout
+
+
+# -- render and analyze -----------------------------------------------------------------
+def test_render_writes_a_real_wav_and_plot(tmp_path):
+    out = tmp_path / "twang.wav"
+    png = tmp_path / "twang.png"
+    r = run("render", "twang", "--preset", "plastic-30cm", "--duration", "1.5", "--sample-rate", "44100",
+            "--seed", "4", "--plot", str(png), "-o", str(out))
+    assert r.exit_code == 0, r.output
+    data, rate = soundfile.read(out)
+    assert rate == 44100 and data.shape == (int(1.5 * 44100),)
+    assert np.max(np.abs(data)) == pytest.approx(10 ** (-1 / 20), abs=1e-4)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    same = tmp_path / "again.wav"
+    run("render", "twang", "--preset", "plastic-30cm", "--duration", "1.5", "--sample-rate", "44100",
+        "--seed", "4", "-o", str(same))
+    assert np.array_equal(soundfile.read(same)[0], data)
+    assert list(tmp_path.glob(".barsynth-*")) == []
+
+
+@pytest.mark.parametrize("suffix,subtype", [(".flac", "PCM_16"), (".wav", "FLOAT")])
+def test_render_other_formats(tmp_path, suffix, subtype):
+    out = tmp_path / ("x" + suffix)
+    assert run("render", "twang", "--duration", "0.2", "--subtype", subtype, "-o", str(out)).exit_code == 0
+    assert soundfile.info(out).frames == int(0.2 * 48000)
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--set", "q=10"], ["q", "50 to 800"]),
+    (["--set", "thickness_m=abc"], ["thickness_m", "abc"]),
+    (["--duration", "0"], ["duration_s"]),
+    (["--duration", "1e9"], ["duration_s", "600"]),
+    (["--sample-rate", "-48000"], ["sample_rate"]),
+    (["--preset", "nope"], ["nope"]),
+])
+def test_render_bad_input_writes_nothing_and_keeps_an_existing_file(tmp_path, args, needles):
+    out = tmp_path / "keep.wav"
+    out.write_bytes(b"precious")
+    r = run("render", "twang", *args, "-o", str(out))
+    assert_one_line_error(r, *needles)
+    assert out.read_bytes() == b"precious"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.wav"]
+
+
+def test_render_bad_paths(tmp_path):
+    assert_one_line_error(run("render", "twang", "-o", str(tmp_path / "x.mp3")), ".mp3")
+    assert_one_line_error(run("render", "twang", "-o", str(tmp_path / "no" / "x.wav")), "does not exist")
+    assert_one_line_error(run("render", "twang", "--plot", str(tmp_path / "p.jpg"), "-o",
+                              str(tmp_path / "x.wav")), ".png")
+    assert not (tmp_path / "x.wav").exists()
+    assert_one_line_error(run("render", "kazoo", "-o", str(tmp_path / "x.wav")), "kazoo")
+
+
+def test_analyze_finds_the_rendered_partials(tmp_path):
+    out = tmp_path / "steel.wav"
+    args = ["--preset", "steel-30cm", "--set", "free_bar_gain=0", "--set", "short_cantilever_gain=0"]
+    run("render", "twang", *args, "--duration", "3", "--subtype", "FLOAT", "-o", str(out))
+    modes = json.loads(run("describe", "twang", *args, "--json").stdout)["modes"]
+    png = tmp_path / "a.png"
+    r = run("analyze", str(out), "--json", "--plot", str(png))
+    assert r.exit_code == 0, r.output
+    partials = json.loads(r.stdout)["partials"]
+    assert png.exists()
+    for p in partials:
+        assert set(p) >= {"frequency_hz", "level_db", "t60_s"}
+    found = [p["frequency_hz"] for p in partials]
+    for m in modes:
+        if m["gain"] > 0.05:
+            nearest = min(found, key=lambda f: abs(math.log2(f / m["frequency_hz"])))
+            assert abs(1200 * math.log2(nearest / m["frequency_hz"])) < 1.0, (m, nearest)
+    ratios = [p["ratio"] for p in partials]
+    assert ratios[0] == 1.0
+    text = run("analyze", str(out)).stdout
+    assert "ratio" in text and "T60" in text
+
+
+def test_analyze_bad_files(tmp_path):
+    assert_one_line_error(run("analyze", str(tmp_path / "missing.wav")), "missing.wav")
+    fake = tmp_path / "fake.wav"
+    fake.write_text("not audio at all")
+    assert_one_line_error(run("analyze", str(fake)), "fake.wav")
+
+
+def test_the_installed_command_exits_2_with_one_line(tmp_path):
+    exe = Path(sys.executable).with_name("barsynth")
+    if not exe.exists():
+        pytest.skip("the barsynth script is not installed next to this Python")
+    out = tmp_path / "x.wav"
+    proc = subprocess.run([str(exe), "render", "twang", "--set", "q=9000", "-o", str(out)],
+                          capture_output=True, text=True, env=dict(os.environ))
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "q" in proc.stderr
+    assert not out.exists()
+    proc = subprocess.run([str(exe), "render", "twang", "--duration", "0.3", "-o", str(out)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0 and soundfile.info(out).samplerate == 48000
+
+
+def test_docs_parameter_table_is_generated_from_the_table():
+    doc = (ROOT / "docs" / "twang.md").read_text(encoding="utf-8")
+    inside = doc.split("<!-- parameters:begin -->\n", 1)[1].split("<!-- parameters:end -->", 1)[0]
+    assert inside == get_model("twang").table.to_markdown()

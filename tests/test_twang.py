@@ -1,0 +1,405 @@
+"""The ruler twang, measured: frequencies, decays, gains, Nyquist, seeds, blocks, clicks."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy import stats
+
+from barsynth import ParameterError
+from barsynth.analysis import band_decay_t60, measure_partial
+from barsynth.models import get_model
+from barsynth.models.twang import TWANG_TABLE, TwangVoice
+from barsynth.physics import bar_frequencies, lambdas
+from barsynth.presets import preset_names, preset_parameters
+
+MODEL = get_model("twang")
+CENTS = 1200.0
+
+
+def cents(a: float, b: float) -> float:
+    return CENTS * math.log2(a / b)
+
+
+def deterministic(**overrides):
+    """Only the cantilever oscillators (no noise), vibrato and slide off."""
+    return {"free_bar_gain": 0.0, **overrides}
+
+
+# -- the modes -------------------------------------------------------------------------
+def test_describe_follows_the_beam_physics():
+    p = {"youngs_modulus_pa": 3.2e9, "density_kg_m3": 1180.0, "length_m": 0.3, "thickness_m": 0.003}
+    modes = MODEL.describe(p, sample_rate=48000)
+    groups = {g: [m for m in modes if m.group == g] for g in ("full-cantilever", "short-cantilever", "free-bar")}
+    full = bar_frequencies(bc="clamped-free", count=6, **p)
+    free = bar_frequencies(bc="free-free", count=6, **p)
+    assert [m.frequency_hz for m in groups["full-cantilever"]] == pytest.approx(full, rel=1e-12)
+    assert [m.frequency_hz for m in groups["short-cantilever"]] == pytest.approx(full / 0.49, rel=1e-12)
+    assert [m.frequency_hz for m in groups["free-bar"]] == pytest.approx(free, rel=1e-12)
+    # the spec's note: a 30 cm plastic ruler's full-length fundamental is about 8 Hz
+    assert 8.0 < full[0] < 10.0
+    for m in modes:  # T60 = ln(1000) Q / (pi f), Q = 100 by default
+        assert m.t60_s == pytest.approx(math.log(1000) * 100 / (math.pi * m.frequency_hz), rel=1e-12)
+
+
+@pytest.mark.parametrize("mapping", ["linear", "log"])
+@pytest.mark.parametrize("shape", [0.5, 1.0, 1.5, 4.0, 10.0])
+def test_gains_follow_the_beta_density(shape, mapping):
+    rate = 48000.0
+    modes = MODEL.describe({"shape": shape, "gain_mapping": mapping}, sample_rate=rate)
+    full = [m for m in modes if m.group == "full-cantilever"]
+    short = [m for m in modes if m.group == "short-cantilever"]
+    free = [m for m in modes if m.group == "free-bar"]
+    shaped = full + free
+    f = np.array([m.frequency_hz for m in shaped])
+    if mapping == "linear":
+        x = f / (rate / 2)
+    else:
+        x = np.log(f) / np.log(rate / 2)
+    pdf = stats.beta(shape, 4).pdf(x)
+    expected = pdf / pdf.max()
+    assert [m.gain for m in shaped] == pytest.approx(expected, rel=1e-9)
+    assert max(m.gain for m in shaped) == pytest.approx(1.0)
+    assert [m.gain for m in short] == pytest.approx([0.75 * m.gain for m in full], rel=1e-12)
+
+
+def test_modes_at_or_above_nyquist_are_dropped_and_not_aliased():
+    # a thin steel bar at 8 kHz: the upper short-cantilever and free modes pass Nyquist
+    p = deterministic(youngs_modulus_pa=200e9, density_kg_m3=7850.0, length_m=0.1,
+                      thickness_m=0.002, q=800)
+    rate = 8000.0
+    all_full = bar_frequencies(youngs_modulus_pa=200e9, density_kg_m3=7850.0, length_m=0.1,
+                               thickness_m=0.002, bc="clamped-free", count=6)
+    above = [f for f in np.concatenate([all_full, all_full / 0.49]) if f >= rate / 2]
+    assert above, "the test needs modes above Nyquist"
+    listed = [m.frequency_hz for m in MODEL.describe(p, sample_rate=rate)]
+    assert all(f < rate / 2 for f in listed)
+    x = MODEL.render(p, duration_s=1.0, sample_rate=rate, normalize=False).astype(np.float64)
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size)))
+    freqs = np.fft.rfftfreq(x.size, 1 / rate)
+    peak = spectrum.max()
+    for f in above:
+        alias = abs((f + rate / 2) % rate - rate / 2)  # where a folded partial would land
+        band = (freqs > alias - 20) & (freqs < alias + 20)
+        near_real = any(abs(alias - g) < 40 for g in listed)
+        if not near_real:
+            assert spectrum[band].max() < peak * 1e-5, f"energy at the alias {alias:.0f} Hz of {f:.0f} Hz"
+
+
+# -- the rendered sound, measured ------------------------------------------------------
+@pytest.mark.parametrize("rate", [44100.0, 48000.0, 96000.0])
+@pytest.mark.parametrize("preset", ["plastic-30cm", "steel-30cm"])
+def test_oscillator_peaks_within_one_cent_and_t60_within_5_percent(preset, rate):
+    params = {**preset_parameters("twang", preset), **deterministic()}
+    modes = MODEL.describe(params, sample_rate=rate)
+    x = MODEL.render(params, duration_s=3.0, sample_rate=rate, normalize=False).astype(np.float64)
+    freqs = sorted(m.frequency_hz for m in modes)
+    checked = 0
+    for m in modes:
+        others = [f for f in freqs if f != m.frequency_hz]
+        gap = min(abs(f - m.frequency_hz) for f in others)
+        if gap < 2.0:  # an exact near-coincidence cannot be split by any measurement
+            continue
+        if m.gain < 1e-3 or m.t60_s < 0.05:
+            continue
+        found = measure_partial(x, rate, m.frequency_hz, bandwidth_hz=min(0.4 * gap, 0.4 * m.frequency_hz))
+        assert abs(cents(found.frequency_hz, m.frequency_hz)) < 1.0, (m, found)
+        assert found.t60_s == pytest.approx(m.t60_s, rel=0.05), (m, found)
+        checked += 1
+    assert checked >= 8
+
+
+FREE_BAND_PARAMS = {"full_cantilever_gain": 0.0, "short_cantilever_gain": 0.0, "q": 200.0,
+                    "free_band_q": 20.0, "youngs_modulus_pa": 200e9, "density_kg_m3": 7850.0,
+                    "thickness_m": 0.001, "length_m": 0.15}
+
+
+def test_free_bar_bands_centred_as_described():
+    """The free-bar bands are noise: their centres are measured over six seeds, as the
+    power-weighted mean log-frequency of the averaged spectrum within one bandwidth of
+    the centre (a 4th-order band-pass is nearly symmetric in log f)."""
+    rate = 48000.0
+    modes = [m for m in MODEL.describe(FREE_BAND_PARAMS, sample_rate=rate) if m.group == "free-bar"]
+    runs = [MODEL.render(FREE_BAND_PARAMS, duration_s=3.0, sample_rate=rate, seed=s, normalize=False)
+            .astype(np.float64) for s in range(6)]
+    power = np.mean([np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2 for x in runs], axis=0)
+    freqs = np.fft.rfftfreq(runs[0].size, 1 / rate)
+    for m in modes[:5]:
+        bandwidth = m.frequency_hz / 20.0
+        window = (freqs > m.frequency_hz - bandwidth) & (freqs < m.frequency_hz + bandwidth)
+        centre = np.exp(np.sum(power[window] * np.log(freqs[window])) / np.sum(power[window]))
+        assert abs(cents(centre, m.frequency_hz)) < 5.0, (m.frequency_hz, centre)
+
+
+@pytest.mark.parametrize("band", range(5))
+def test_each_free_bar_band_decays_with_its_t60(band):
+    """Each band soloed (mode_mask), its energy envelope averaged over six seeds: in the
+    full mix the skirts of slower bands hold up the tail of faster ones."""
+    rate = 48000.0
+    modes = [m for m in MODEL.describe(FREE_BAND_PARAMS, sample_rate=rate) if m.group == "free-bar"]
+    mode = modes[band]
+    mask = np.zeros(18, dtype=bool)
+    mask[12 + band] = True
+    measured = []
+    for seed in range(6):
+        voice = TwangVoice(FREE_BAND_PARAMS, sample_rate=rate, seed=seed, mode_mask=mask)
+        voice.trigger()
+        x = voice.process(int(min(3.0, 4 * mode.t60_s) * rate), dtype=np.float64)
+        measured.append(band_decay_t60(x, rate, mode.frequency_hz, mode.frequency_hz / 20))
+    assert np.mean(measured) == pytest.approx(mode.t60_s, rel=0.05), measured
+
+
+def test_mode_mask_solos_and_rejects_bad_masks():
+    mask = np.zeros(18, dtype=bool)
+    mask[3] = True
+    voice = TwangVoice(deterministic(), mode_mask=mask)
+    voice.trigger()
+    x = voice.process(48000, dtype=np.float64)
+    mode = [m for m in MODEL.describe(deterministic()) if m.group == "full-cantilever"][3]
+    spectrum = np.abs(np.fft.rfft(x))
+    peak_hz = np.argmax(spectrum) * 48000 / x.size
+    assert abs(peak_hz - mode.frequency_hz) < 1.5
+    assert x[0] == pytest.approx(10 ** (-3 / 20))
+    for bad in ([1, 0], np.full(18, 2)):
+        with pytest.raises(ParameterError, match="mode_mask"):
+            TwangVoice(mode_mask=bad)
+
+
+def test_first_sample_is_the_level():
+    for level in (-3.0, -20.0):
+        x = MODEL.render({"level_db": level}, duration_s=0.01, normalize=False, dtype=np.float64)
+        assert x[0] == pytest.approx(10 ** (level / 20), rel=1e-12)
+
+
+def test_normalised_render_peaks_at_minus_one_dbfs():
+    x = MODEL.render(duration_s=0.5)
+    assert x.dtype == np.float32
+    assert float(np.max(np.abs(x))) == pytest.approx(10 ** (-1 / 20), rel=1e-6)
+
+
+def test_vibrato_swings_the_loudest_mode_by_the_depth():
+    rate = 48000.0
+    params = deterministic(vibrato_rate_hz=4.0, vibrato_depth_hz=10.0, q=800.0, level_db=-3.0)
+    modes = MODEL.describe(params, sample_rate=rate)
+    loudest = max(modes, key=lambda m: m.gain)
+    x = MODEL.render(params, duration_s=2.0, sample_rate=rate, normalize=False).astype(np.float64)
+    t = np.arange(x.size) / rate
+    analytic = x * np.exp(-2j * np.pi * loudest.frequency_hz * t)
+    from scipy.signal import butter, sosfiltfilt
+
+    sos = butter(4, 40.0, fs=rate, output="sos")
+    baseband = sosfiltfilt(sos, analytic.real) + 1j * sosfiltfilt(sos, analytic.imag)
+    inst = loudest.frequency_hz + np.diff(np.unwrap(np.angle(baseband))) * rate / (2 * np.pi)
+    middle = inst[int(0.3 * rate):int(1.8 * rate)]
+    swing = 0.5 * (np.percentile(middle, 99.5) - np.percentile(middle, 0.5))
+    assert swing == pytest.approx(10.0, rel=0.1)
+    spectrum = np.abs(np.fft.rfft(middle - middle.mean()))
+    rate_found = np.fft.rfftfreq(middle.size, 1 / rate)[np.argmax(spectrum)]
+    assert rate_found == pytest.approx(4.0, abs=0.7)
+
+
+def test_slide_raises_the_short_cantilever_by_35_percent():
+    rate = 48000.0
+    params = {"full_cantilever_gain": 0.0, "free_bar_gain": 0.0, "slide": True, "slide_time_s": 0.5,
+              "q": 800.0, "shape": 1.0}
+    modes = [m for m in MODEL.describe(params, sample_rate=rate) if m.group == "short-cantilever"]
+    target = modes[2]  # a well separated mid mode
+    x = MODEL.render(params, duration_s=1.5, sample_rate=rate, normalize=False).astype(np.float64)
+    late = x[int(0.7 * rate):]
+    found = measure_partial(late, rate, target.frequency_hz * 1.35, bandwidth_hz=0.1 * target.frequency_hz)
+    assert abs(cents(found.frequency_hz, target.frequency_hz * 1.35)) < 1.0
+    early = x[: int(0.02 * rate)]
+    assert early.size  # before the slide gets going the mode is at its resting pitch
+    spectrum = np.abs(np.fft.rfft(x[:int(0.05 * rate)] * np.hanning(int(0.05 * rate)), 1 << 16))
+    fgrid = np.fft.rfftfreq(1 << 16, 1 / rate)
+    win = (fgrid > target.frequency_hz * 0.9) & (fgrid < target.frequency_hz * 1.1)
+    assert fgrid[win][np.argmax(spectrum[win])] == pytest.approx(target.frequency_hz, rel=0.03)
+
+
+# -- reproducibility and streaming -----------------------------------------------------
+def test_same_seed_same_samples_other_seed_other_noise():
+    a = MODEL.render(duration_s=0.5, seed=7)
+    b = MODEL.render(duration_s=0.5, seed=7)
+    c = MODEL.render(duration_s=0.5, seed=8)
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+@pytest.mark.parametrize("rate", [22050.0, 44100.0, 48000.0, 96000.0])
+@pytest.mark.parametrize("block", [1, 7, 64, 256, 1000, 4097])
+def test_blocks_of_any_size_equal_the_offline_render(rate, block):
+    params = {"vibrato_rate_hz": 5.0, "slide": True, "slide_time_s": 0.2}
+    total = int(0.4 * rate)
+    offline = MODEL.render(params, duration_s=total / rate, sample_rate=rate, seed=3, normalize=False)
+    voice = TwangVoice(params, sample_rate=rate, seed=3)
+    voice.trigger()
+    blocks = []
+    done = 0
+    while done < total:
+        n = min(block, total - done)
+        blocks.append(voice.process(n))
+        done += n
+    assert np.array_equal(np.concatenate(blocks), offline)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.integers(min_value=0, max_value=700), min_size=1, max_size=40))
+def test_random_block_splits_equal_the_offline_render(sizes):
+    total = sum(sizes)
+    if total == 0:
+        return
+    offline = MODEL.render(duration_s=total / 48000, seed=11, normalize=False)
+    voice = TwangVoice(sample_rate=48000, seed=11)
+    voice.trigger()
+    assert np.array_equal(np.concatenate([voice.process(n) for n in sizes]), offline)
+
+
+def _largest_step(x: np.ndarray) -> float:
+    return float(np.max(np.abs(np.diff(x))))
+
+
+CLICK_HIGHPASS_HZ = 12000.0  # above every mode of the test sound: only a click reaches it
+
+
+def _click_measures(x: np.ndarray, change: int, rate: int) -> tuple[float, float]:
+    """(step ratio, high-pass spike) around a change at sample ``change``.
+
+    step ratio: the largest sample-to-sample step from 5 ms before to 25 ms after
+    the change, over the larger of the largest steps in the 20 ms before it and in
+    20 ms once the smoothing has settled. high-pass spike: the largest output of an
+    8th-order 12 kHz high-pass near the change, relative to the signal's peak.
+    """
+    from scipy.signal import butter, sosfilt
+
+    ms = rate // 1000
+    before = _largest_step(x[change - 20 * ms:change])
+    across = _largest_step(x[change - 5 * ms:change + 25 * ms])
+    after = _largest_step(x[change + 25 * ms:change + 45 * ms])
+    high = sosfilt(butter(8, CLICK_HIGHPASS_HZ, "highpass", fs=rate, output="sos"), x)
+    peak = np.max(np.abs(x[change - 50 * ms:change + 50 * ms]))
+    spike = np.max(np.abs(high[change - 5 * ms:change + 30 * ms])) / peak
+    return across / max(before, after), spike
+
+
+MAX_STEP_RATIO = 1.5
+MAX_HIGHPASS_SPIKE = 5e-3  # -46 dB re the signal's peak
+
+
+def test_click_detector_catches_an_unsmoothed_change():
+    rate = 48000
+    t = np.arange(rate) / rate
+    for gain_after in (0.1, 0.5, 2.0):
+        x = np.sin(2 * np.pi * 700 * t + 0.3) * np.where(t < 0.5, 1.0, gain_after)
+        ratio, spike = _click_measures(x, rate // 2, rate)
+        assert ratio > MAX_STEP_RATIO or spike > MAX_HIGHPASS_SPIKE
+        assert spike > 5 * MAX_HIGHPASS_SPIKE
+
+
+CHANGES = [
+    ("level_db", -30.0), ("level_db", 0.0), ("length_m", 0.2), ("length_m", 0.5),
+    ("thickness_m", 0.005), ("youngs_modulus_pa", 6e9), ("density_kg_m3", 2500.0), ("q", 50.0),
+    ("q", 800.0), ("shape", 6.0), ("shape", 0.5), ("gain_mapping", "log"), ("short_length_ratio", 0.4),
+    ("full_cantilever_gain", 0.0), ("short_cantilever_gain", 1.0), ("slide", True),
+    ("vibrato_rate_hz", 8.0),
+]
+
+
+@pytest.mark.parametrize("name,value", CHANGES)
+def test_parameter_change_while_sounding_does_not_click(name, value):
+    rate = 48000
+    voice = TwangVoice(deterministic(q=800.0), sample_rate=rate)
+    voice.trigger()
+    before = voice.process(int(0.3 * rate), dtype=np.float64)
+    voice.set_parameters(**{name: value})
+    after = voice.process(int(0.1 * rate), dtype=np.float64)
+    x = np.concatenate([before, after])
+    assert np.all(np.isfinite(x))
+    ratio, spike = _click_measures(x, before.size, rate)
+    assert ratio <= MAX_STEP_RATIO, (name, ratio)
+    assert spike <= MAX_HIGHPASS_SPIKE, (name, spike)
+
+
+def test_change_is_heard_within_50_ms():
+    rate = 48000
+    voice = TwangVoice(deterministic(q=800.0), sample_rate=rate)
+    voice.trigger()
+    voice.process(int(0.1 * rate))
+    voice.set_parameters(level_db=-40.0)
+    voice.process(int(0.05 * rate))
+    x = voice.process(int(0.02 * rate), dtype=np.float64)
+    assert np.max(np.abs(x)) < 10 ** (-36 / 20)
+
+
+# -- robustness --------------------------------------------------------------------------
+def _strategy(p):
+    if p.kind == "choice":
+        return st.sampled_from(p.choices)
+    if p.kind == "bool":
+        return st.booleans()
+    return st.floats(min_value=p.minimum, max_value=p.maximum, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.fixed_dictionaries({p.name: _strategy(p) for p in TWANG_TABLE}),
+       st.sampled_from([8000.0, 44100.0, 96000.0]))
+def test_random_parameters_give_finite_bounded_output(values, rate):
+    x = MODEL.render(values, duration_s=0.3, sample_rate=rate, normalize=False, dtype=np.float64)
+    assert np.all(np.isfinite(x))
+    assert np.max(np.abs(x)) < 4.0
+    for m in MODEL.describe(values, sample_rate=rate):
+        assert 0 < m.frequency_hz < rate / 2 and m.gain > 0 and m.t60_s > 0
+
+
+@pytest.mark.parametrize("p", [p for p in TWANG_TABLE if p.kind in ("float", "int")], ids=lambda p: p.name)
+def test_every_parameter_rejected_just_outside_its_range(p):
+    span = p.maximum - p.minimum
+    for bad in (p.minimum - 1e-6 * span, p.maximum + 1e-6 * span, float("nan"), float("inf"), "x"):
+        with pytest.raises(ParameterError) as info:
+            MODEL.render({p.name: bad}, duration_s=0.01)
+        message = str(info.value)
+        assert p.name in message and "allowed" in message
+        assert p.unit_label in message
+    MODEL.render({p.name: p.minimum}, duration_s=0.01)
+    MODEL.render({p.name: p.maximum}, duration_s=0.01)
+
+
+def test_choice_bool_and_unknown_parameters_rejected():
+    for values in ({"gain_mapping": "cubic"}, {"slide": "maybe"}, {"no_such_thing": 1.0}):
+        with pytest.raises(ParameterError):
+            MODEL.render(values, duration_s=0.01)
+    voice = TwangVoice()
+    with pytest.raises(ParameterError):
+        voice.set_parameters(q=10.0)
+    assert voice.parameters.q == 100.0  # a refused change leaves the voice as it was
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ParameterError):
+            voice.process(bad)
+
+
+@pytest.mark.parametrize("rate", [0, 7999, float("nan"), 1e6])
+def test_bad_sample_rates_and_durations_rejected(rate):
+    with pytest.raises(ParameterError, match="sample_rate"):
+        MODEL.render(duration_s=0.1, sample_rate=rate)
+    with pytest.raises(ParameterError, match="duration_s"):
+        MODEL.render(duration_s=0.0)
+
+
+def test_presets_exist_resolve_and_sound():
+    names = preset_names("twang")
+    for needed in ("plastic-30cm", "wooden-30cm", "steel-30cm"):
+        assert needed in names
+    for name in names:
+        params = TWANG_TABLE.resolve(preset_parameters("twang", name))
+        x = MODEL.render(params, duration_s=0.5)
+        assert np.all(np.isfinite(x)) and np.max(np.abs(x)) > 0.5
+
+
+def test_lambdas_used_are_the_physics_layer_ones():
+    from barsynth.models.twang import _lambdas
+
+    assert np.array_equal(_lambdas()[:6], lambdas("clamped-free", 6))
+    assert np.array_equal(_lambdas()[6:], lambdas("free-free", 6))
