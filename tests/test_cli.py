@@ -151,6 +151,8 @@ def test_render_other_formats(tmp_path, suffix, subtype):
     (["--duration", "0"], ["duration_s"]),
     (["--duration", "1e9"], ["duration_s", "600"]),
     (["--sample-rate", "-48000"], ["sample_rate"]),
+    (["--sample-rate", "44100.5"], ["sample_rate", "whole"]),
+    (["--seed", "-1"], ["seed"]),
     (["--preset", "nope"], ["nope"]),
 ])
 def test_render_bad_input_writes_nothing_and_keeps_an_existing_file(tmp_path, args, needles):

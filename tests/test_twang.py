@@ -380,7 +380,19 @@ def test_choice_bool_and_unknown_parameters_rejected():
             voice.process(bad)
 
 
-@pytest.mark.parametrize("rate", [0, 7999, float("nan"), 1e6])
+@pytest.mark.parametrize("seed", [-1, 1.5, "x", True])
+def test_bad_seeds_rejected(seed):
+    with pytest.raises(ParameterError, match="seed"):
+        MODEL.render(duration_s=0.1, seed=seed)
+
+
+def test_seed_none_gives_fresh_noise():
+    a = MODEL.render(duration_s=0.2, seed=None)
+    b = MODEL.render(duration_s=0.2, seed=None)
+    assert not np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("rate", [0, 7999, float("nan"), 1e6, 44100.5])
 def test_bad_sample_rates_and_durations_rejected(rate):
     with pytest.raises(ParameterError, match="sample_rate"):
         MODEL.render(duration_s=0.1, sample_rate=rate)

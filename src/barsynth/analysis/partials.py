@@ -57,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import check_array, check_number, check_whole
 from ..errors import AudioFileError, ParameterError
 
 __all__ = [
@@ -125,13 +126,7 @@ def _json_number(value: float) -> float | None:
 # ----------------------------------------------------------------------------------
 def _as_signal(samples: Any, sample_rate: Any) -> tuple[np.ndarray, float]:
     fs = _positive("sample_rate", sample_rate, "Hz")
-    try:
-        x = np.asarray(samples)
-    except Exception:  # noqa: BLE001 - anything numpy cannot take is a bad argument
-        raise ParameterError(
-            f"parameter samples = {type(samples).__name__} is not an array; "
-            "allowed: a 1-D array of finite real numbers"
-        ) from None
+    x = check_array("samples", samples, "")
     if x.ndim != 1:
         raise ParameterError(
             f"parameter samples has shape {x.shape}; allowed: a 1-D array "
@@ -139,43 +134,20 @@ def _as_signal(samples: Any, sample_rate: Any) -> tuple[np.ndarray, float]:
         )
     if x.size == 0:
         raise ParameterError("parameter samples is empty; allowed: at least 1 sample")
-    if x.dtype == bool or not (
-        np.issubdtype(x.dtype, np.floating) or np.issubdtype(x.dtype, np.integer)
-    ):
-        raise ParameterError(
-            f"parameter samples has dtype {x.dtype}; allowed: real numbers (float or int)"
-        )
-    x = x.astype(np.float64, copy=False)
-    if not np.all(np.isfinite(x)):
-        bad = int(np.flatnonzero(~np.isfinite(x))[0])
-        raise ParameterError(
-            f"parameter samples[{bad}] = {x[bad]!r} is not finite; allowed: finite numbers"
-        )
     return x, fs
 
 
-def _number(name: str, value: Any, unit: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ParameterError(
-            f"parameter {name} = {value!r} is not a number; allowed: a number in {unit}"
-        )
-    return float(value)
-
-
 def _positive(name: str, value: Any, unit: str) -> float:
-    v = _number(name, value, unit)
-    if not (math.isfinite(v) and v > 0):
-        raise ParameterError(f"parameter {name} = {value!r} is out of range; allowed: > 0 {unit}")
-    return v
+    """``value`` as a finite float > 0 (also used by :mod:`.plots`)."""
+    return check_number(name, value, unit, minimum=0.0, minimum_exclusive=True)
 
 
-def _in_range(name: str, value: Any, lo: float, hi: float, unit: str) -> float:
-    v = _number(name, value, unit)
-    if not (math.isfinite(v) and lo <= v <= hi):
-        raise ParameterError(
-            f"parameter {name} = {value!r} is out of range; allowed: {lo:g} to {hi:g} {unit}"
-        )
-    return v
+def _below_nyquist(name: str, value: Any, sample_rate: float) -> float:
+    """``value`` as a frequency strictly between 0 and half the sample rate, Hz."""
+    return check_number(
+        name, value, "Hz (below half the sample rate)", minimum=0.0, maximum=0.5 * sample_rate,
+        minimum_exclusive=True, maximum_exclusive=True,
+    )
 
 
 # ----------------------------------------------------------------------------------
@@ -941,20 +913,17 @@ def find_partials(
     (440.0, -6.02, 1.5)
     """
     x, fs = _as_signal(samples, sample_rate)
-    whole = isinstance(max_partials, (int, np.integer)) and not isinstance(max_partials, bool)
-    if not whole or max_partials < 1:
-        raise ParameterError(
-            f"parameter max_partials = {max_partials!r} is out of range; "
-            "allowed: a whole number >= 1"
-        )
-    max_partials = int(max_partials)
-    min_level_db = _in_range(
-        "min_level_db", min_level_db, -300.0, 0.0, "dB (relative to the strongest partial)"
+    max_partials = check_whole("max_partials", max_partials, "", 1)
+    min_level_db = check_number(
+        "min_level_db", min_level_db, "dB (relative to the strongest partial)",
+        minimum=-300.0, maximum=0.0,
     )
-    min_separation_cents = _in_range(
-        "min_separation_cents", min_separation_cents, 0.0, 2400.0, "cents"
+    min_separation_cents = check_number(
+        "min_separation_cents", min_separation_cents, "cents", minimum=0.0, maximum=2400.0
     )
-    min_frequency_hz = _in_range("min_frequency_hz", min_frequency_hz, 0.0, 0.5 * fs, "Hz")
+    min_frequency_hz = check_number(
+        "min_frequency_hz", min_frequency_hz, "Hz", minimum=0.0, maximum=0.5 * fs
+    )
     min_frequency_hz = max(min_frequency_hz, 1e-6)
     sep = max(min_separation_cents, 1e-3)
 
@@ -1161,19 +1130,11 @@ def measure_partial(
     (1050.0, 2.0)
     """
     x, fs = _as_signal(samples, sample_rate)
-    nyq = 0.5 * fs
-    f0 = _number("frequency_hz", frequency_hz, "Hz")
-    if not (math.isfinite(f0) and 0.0 < f0 < nyq):
-        raise ParameterError(
-            f"parameter frequency_hz = {frequency_hz!r} is out of range; allowed: 0 to {nyq:g} Hz "
-            "(exclusive; below half the sample rate)"
-        )
+    f0 = _below_nyquist("frequency_hz", frequency_hz, fs)
     if bandwidth_hz is not None:
-        bandwidth_hz = _in_range("bandwidth_hz", bandwidth_hz, 1e-6, nyq, "Hz")
-        if not bandwidth_hz > 0:
-            raise ParameterError(
-                f"parameter bandwidth_hz = {bandwidth_hz!r} is out of range; allowed: > 0 Hz"
-            )
+        bandwidth_hz = check_number(
+            "bandwidth_hz", bandwidth_hz, "Hz", minimum=1e-6, maximum=0.5 * fs
+        )
     search = _Search(x, fs, 24, -80.0, 30.0, min(5.0, 0.5 * f0))
     engine = search.engine
     if engine.peak == 0.0:
@@ -1218,18 +1179,10 @@ def band_decay_t60(
     from scipy.ndimage import uniform_filter1d
 
     x, fs = _as_signal(samples, sample_rate)
-    nyq = 0.5 * fs
-    fc = _number("centre_hz", centre_hz, "Hz")
-    if not (math.isfinite(fc) and 0.0 < fc < nyq):
-        raise ParameterError(
-            f"parameter centre_hz = {centre_hz!r} is out of range; "
-            f"allowed: 0 to {nyq:g} Hz (exclusive)"
-        )
-    bw = _positive("bandwidth_hz", bandwidth_hz, "Hz")
-    if bw > fs:
-        raise ParameterError(
-            f"parameter bandwidth_hz = {bandwidth_hz!r} is out of range; allowed: 0 to {fs:g} Hz"
-        )
+    fc = _below_nyquist("centre_hz", centre_hz, fs)
+    bw = check_number(
+        "bandwidth_hz", bandwidth_hz, "Hz", minimum=0.0, maximum=fs, minimum_exclusive=True
+    )
     engine = _Engine(x, fs)
     if engine.peak == 0.0:
         return math.nan

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
+from ..checks import check_number, check_whole
 from ..errors import ParameterError
 
 MIN_SAMPLE_RATE = 8_000.0
@@ -15,45 +15,39 @@ MAX_DURATION_S = 600.0
 NORMALIZE_PEAK_DBFS = -1.0
 
 
-def _as_float(value: Any) -> float:
-    if isinstance(value, bool):
-        return float("nan")
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return float("nan")
-
-
 def check_sample_rate(sample_rate: Any) -> float:
-    """Validate a sample rate in Hz (8 kHz to 384 kHz)."""
-    rate = _as_float(sample_rate)
-    if not (math.isfinite(rate) and MIN_SAMPLE_RATE <= rate <= MAX_SAMPLE_RATE):
+    """Validate a sample rate: a whole number of Hz from 8 kHz to 384 kHz (audio files
+    store whole rates); text such as "48000" is parsed."""
+    rate = check_number(
+        "sample_rate", sample_rate, "Hz",
+        minimum=MIN_SAMPLE_RATE, maximum=MAX_SAMPLE_RATE, parse_text=True,
+    )
+    if not rate.is_integer():
         raise ParameterError(
-            f"parameter sample_rate = {sample_rate!r} is out of range; "
-            f"allowed: {MIN_SAMPLE_RATE:g} to {MAX_SAMPLE_RATE:g} Hz"
+            f"parameter sample_rate = {sample_rate!r} is not a whole number; "
+            f"allowed: whole numbers from {MIN_SAMPLE_RATE:g} to {MAX_SAMPLE_RATE:g} Hz"
         )
     return rate
 
 
+def check_seed(seed: Any) -> int | None:
+    """Validate a noise seed: None (fresh entropy each time) or a whole number >= 0."""
+    if seed is None:
+        return None
+    return check_whole("seed", seed, "", 0)
+
+
 def check_duration(duration_s: Any) -> float:
-    """Validate a render duration in seconds (more than 0, at most 600 s)."""
-    duration = _as_float(duration_s)
-    if not (math.isfinite(duration) and 0.0 < duration <= MAX_DURATION_S):
-        raise ParameterError(
-            f"parameter duration_s = {duration_s!r} is out of range; "
-            f"allowed: more than 0 up to {MAX_DURATION_S:g} s"
-        )
-    return duration
+    """Validate a render duration in seconds (more than 0, at most 600 s); text is parsed."""
+    return check_number(
+        "duration_s", duration_s, "s",
+        minimum=0.0, maximum=MAX_DURATION_S, minimum_exclusive=True, parse_text=True,
+    )
 
 
 def check_block_size(num_samples: Any) -> int:
     """Validate a block length in samples (a whole number, 0 or more)."""
-    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 0:
-        raise ParameterError(
-            f"parameter num_samples = {num_samples!r} is out of range; "
-            "allowed: a whole number of samples, 0 or more"
-        )
-    return int(num_samples)
+    return check_whole("num_samples", num_samples, "samples", 0)
 
 
 def render_voice(voice: Any, duration_s: float) -> np.ndarray:

@@ -51,7 +51,7 @@ from ..parameters import BOOL, CHOICE, Parameter, ParameterTable
 from . import twang_kernel as K
 from ..errors import ParameterError
 from .base import Mode, resolve_parameters
-from .rendering import check_block_size, check_sample_rate, normalize_peak, render_voice
+from .rendering import check_block_size, check_sample_rate, check_seed, normalize_peak, render_voice
 
 SMOOTHING_TIME_S = 0.005
 CONTROL_FRAME_S = 0.002
@@ -135,6 +135,15 @@ def _vector(parameters: Any) -> np.ndarray:
     return vec
 
 
+def _design(vector: np.ndarray, mode_mask: np.ndarray, sample_rate: float):
+    """(frequencies in Hz, gains, decay rates in 1/s) of the 18 modes at the trigger."""
+    freqs = np.empty(K.N_MODES)
+    gains = np.empty(K.N_MODES)
+    alphas = np.empty(K.N_MODES)
+    K.design(vector, _lambdas(), mode_mask, sample_rate, 0.0, 0.0, freqs, gains, alphas)
+    return freqs, gains, alphas
+
+
 def _mode_mask(mask: Any) -> np.ndarray:
     if mask is None:
         return np.ones(K.N_MODES)
@@ -153,11 +162,7 @@ def design_modes(parameters: Any = None, *, sample_rate: float = 48000.0) -> lis
     Modes silenced by Nyquist or by a zero group gain are left out.
     """
     params = resolve_parameters(MODEL, parameters)
-    rate = check_sample_rate(sample_rate)
-    freqs = np.empty(K.N_MODES)
-    gains = np.empty(K.N_MODES)
-    alphas = np.empty(K.N_MODES)
-    K.design(_vector(params), _lambdas(), np.ones(K.N_MODES), rate, 0.0, 0.0, freqs, gains, alphas)
+    freqs, gains, alphas = _design(_vector(params), np.ones(K.N_MODES), check_sample_rate(sample_rate))
     modes = []
     for i in range(K.N_MODES):
         if gains[i] > 0.0:
@@ -196,7 +201,7 @@ class TwangVoice:
                  mode_mask: Any = None):
         self._params = resolve_parameters(MODEL, parameters)
         self._mode_mask = _mode_mask(mode_mask)
-        self._seed = seed
+        self._seed = check_seed(seed)
         self._lambdas = _lambdas()
         self.prepare(sample_rate)
 
@@ -214,7 +219,7 @@ class TwangVoice:
         self.reset()
 
     def reset(self) -> None:
-        """Silence the voice and restart its noise from the seed."""
+        """Silence the voice and restart its noise from the seed (fresh noise if the seed is None)."""
         self._target = _vector(self._params)
         self._current = self._target.copy()
         self._scal = np.zeros(K.N_SCALARS)
@@ -245,11 +250,7 @@ class TwangVoice:
     def trigger(self) -> None:
         """Twang: restart every phasor at phase 0 with full amplitude."""
         self._current[:] = self._target
-        freqs = np.empty(K.N_MODES)
-        gains = np.empty(K.N_MODES)
-        alphas = np.empty(K.N_MODES)
-        K.design(self._current, self._lambdas, self._mode_mask, self.sample_rate, 0.0, 0.0,
-                 freqs, gains, alphas)
+        _, gains, _ = _design(self._current, self._mode_mask, self.sample_rate)
         # Scale the note by the larger of the oscillator gains' sum (the first sample,
         # every cosine at phase 0 with the noise drive at 0, is then exactly the level)
         # and the free-bar gains' sum (each band peaks near its gain: unit-power noise
@@ -267,11 +268,13 @@ class TwangVoice:
 
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples (mono), float32 unless ``dtype`` says otherwise."""
+        if np.dtype(dtype) not in (np.float32, np.float64):
+            raise ParameterError(f"parameter dtype = {dtype!r} is not allowed; allowed: float32 or float64")
         out = np.empty(check_block_size(num_samples))
         if out.size:
             K.process(out, self._current, self._target, _LOG_MASK, self._smooth_k, self._lambdas,
-                      self._mode_mask, self.sample_rate, self._frame_len, self._scal, self._rng, self._osc_z,
-                      self._osc_pow, self._osc_gain, self._band_state, self._band_coef,
+                      self._mode_mask, self.sample_rate, self._frame_len, self._scal, self._rng,
+                      self._osc_z, self._osc_pow, self._osc_gain, self._band_state, self._band_coef,
                       self._band_env, self._band_pow, self._band_gain, self._freqs,
                       self._gains, self._alphas, self._excitation, self._osc_active,
                       self._band_active, self._counts)

@@ -31,12 +31,11 @@ Free–free excludes the two rigid-body modes (λ = 0).
 from __future__ import annotations
 
 import math
-import operator
 from functools import lru_cache
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..checks import check_choice, check_whole
 
 __all__ = ["BOUNDARY_CONDITIONS", "lambda_ratios", "lambdas"]
 
@@ -92,35 +91,11 @@ _CHARACTERISTIC = {
 
 def _check_bc(bc: object) -> str:
     """The canonical name of a boundary-condition pair, or ParameterError."""
-    if isinstance(bc, str):
-        name = bc.strip().lower().replace("_", "-").replace("–", "-")
-        if name in BOUNDARY_CONDITIONS:
-            return name
-    raise ParameterError(
-        f"parameter bc = {bc!r} is not a known boundary condition; "
-        f"allowed: one of {', '.join(BOUNDARY_CONDITIONS)}"
-    )
+    return check_choice("bc", bc, BOUNDARY_CONDITIONS, normalize=_dashes)
 
 
-def _check_whole(name: str, value: object, minimum: int, maximum: int) -> int:
-    """Return ``value`` as an int in ``[minimum, maximum]`` or raise ParameterError."""
-    allowed = f"allowed: {minimum} to {maximum} dimensionless (a whole number)"
-    if isinstance(value, bool):
-        raise ParameterError(
-            f"parameter {name} = {value!r} is not a whole number; {allowed}"
-        )
-    try:
-        number = operator.index(value)
-    except TypeError:
-        if isinstance(value, float) and value.is_integer():
-            number = int(value)
-        else:
-            raise ParameterError(
-                f"parameter {name} = {value!r} is not a whole number; {allowed}"
-            ) from None
-    if not minimum <= number <= maximum:
-        raise ParameterError(f"parameter {name} = {value!r} is out of range; {allowed}")
-    return number
+def _dashes(name: str) -> str:
+    return name.replace("_", "-").replace("–", "-")
 
 
 def bracketed_root(func, lo: float, hi: float, *, max_iterations: int = 200) -> float:
@@ -214,7 +189,7 @@ def lambdas(bc: str, count: int) -> np.ndarray:
     array([1.8751, 4.6941])
     """
     name = _check_bc(bc)
-    n = _check_whole("count", count, 1, MAX_COUNT)
+    n = check_whole("count", count, "", 1, MAX_COUNT, integral_floats=True)
     return _lambdas(name, n).copy()
 
 

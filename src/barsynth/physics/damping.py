@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..checks import check_array
 
 __all__ = [
     "alpha_from_q",
@@ -34,19 +34,7 @@ LN_1000 = math.log(1000.0)
 
 def _positive(name: str, value, unit: str, minimum: float = 0.0) -> np.ndarray:
     """``value`` as a float64 array, every element finite and > ``minimum``."""
-    allowed = f"allowed: > {minimum:g} {unit}"
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ParameterError(
-            f"parameter {name} = {value!r} is not a number; {allowed}"
-        ) from None
-    bad = ~(np.isfinite(arr) & (arr > minimum))
-    if bad.any():
-        raise ParameterError(
-            f"parameter {name} = {float(arr[bad].flat[0])!r} is out of range; {allowed}"
-        )
-    return arr
+    return check_array(name, value, unit, minimum=minimum, minimum_exclusive=True)
 
 
 def _result(out: np.ndarray):

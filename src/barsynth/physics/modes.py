@@ -27,29 +27,17 @@ This is the sign of the textbook forms and of ``sqrt(2) sin(nπx)``.
 from __future__ import annotations
 
 import math
-import numbers
 from functools import lru_cache
 
 import numpy as np
 
-from ..errors import ParameterError
-from .boundary import MAX_COUNT, _check_bc, _check_whole, _root, lambdas
+from ..checks import check_array, check_number, check_whole
+from .boundary import MAX_COUNT, _check_bc, _root, lambdas
 
 __all__ = ["bar_frequencies", "bending_wave_constant", "mode_shape"]
 
 # Derivative orders that vanish at an end of each kind.
 _END_ORDERS = {"free": (2, 3), "clamped": (0, 1), "pinned": (0, 2)}
-
-
-def _positive_float(name: str, value: object, unit: str) -> float:
-    """Return ``value`` as a finite float > 0 or raise ParameterError naming it."""
-    allowed = f"allowed: > 0 {unit}"
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ParameterError(f"parameter {name} = {value!r} is not a number; {allowed}")
-    number = float(value)
-    if not (math.isfinite(number) and number > 0.0):
-        raise ParameterError(f"parameter {name} = {value!r} is out of range; {allowed}")
-    return number
 
 
 def bending_wave_constant(
@@ -78,9 +66,10 @@ def bending_wave_constant(
     >>> round(bending_wave_constant(3.2e9, 1180.0, 0.003), 2)  # acrylic ruler
     1.43
     """
-    e = _positive_float("youngs_modulus_pa", youngs_modulus_pa, "Pa")
-    rho = _positive_float("density_kg_m3", density_kg_m3, "kg/m³")
-    h = _positive_float("thickness_m", thickness_m, "m")
+    positive = {"minimum": 0.0, "minimum_exclusive": True}
+    e = check_number("youngs_modulus_pa", youngs_modulus_pa, "Pa", **positive)
+    rho = check_number("density_kg_m3", density_kg_m3, "kg/m³", **positive)
+    h = check_number("thickness_m", thickness_m, "m", **positive)
     return math.sqrt(e / rho) * h / math.sqrt(12.0)
 
 
@@ -124,7 +113,7 @@ def bar_frequencies(
     array([ 35.5, 222.3])
     """
     a = bending_wave_constant(youngs_modulus_pa, density_kg_m3, thickness_m)
-    length = _positive_float("length_m", length_m, "m")
+    length = check_number("length_m", length_m, "m", minimum=0.0, minimum_exclusive=True)
     lam = lambdas(bc, count)
     return a * lam**2 / (2.0 * math.pi * length**2)
 
@@ -218,20 +207,9 @@ def mode_shape(bc: str, n: int, x, *, derivative: int = 0):
     2.0
     """
     name = _check_bc(bc)
-    mode = _check_whole("n", n, 1, MAX_COUNT)
-    order = _check_whole("derivative", derivative, 0, 3)
-    try:
-        pos = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ParameterError(
-            f"parameter x = {x!r} is not a number; allowed: 0 to 1 (fraction of length)"
-        ) from None
-    bad = ~(np.isfinite(pos) & (pos >= 0.0) & (pos <= 1.0))
-    if bad.any():
-        raise ParameterError(
-            f"parameter x = {float(pos[bad].flat[0])!r} is out of range; "
-            "allowed: 0 to 1 (fraction of length)"
-        )
+    mode = check_whole("n", n, "", 1, MAX_COUNT, integral_floats=True)
+    order = check_whole("derivative", derivative, "", 0, 3, integral_floats=True)
+    pos = check_array("x", x, "(fraction of length)", minimum=0.0, maximum=1.0)
     lam, coef = _shape_coefficients(name, mode)
     out = np.tensordot(coef, _basis(lam * pos, lam, order), axes=1) * lam**order
     return out[()] if out.ndim == 0 else out

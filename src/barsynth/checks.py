@@ -1,0 +1,218 @@
+"""Validation of arguments, with barsynth's one-line error messages.
+
+Every check returns the value in a normal form or raises
+:class:`~barsynth.errors.ParameterError` with a message such as
+
+    parameter length_m = -1 is out of range; allowed: > 0 m
+    parameter q = 'high' is not a number; allowed: > 0 dimensionless
+    parameter count = 2.5 is not a whole number; allowed: 1 to 100000 dimensionless (a whole number)
+
+naming the parameter, the value given, the allowed range and the unit (an empty
+unit reads "dimensionless").
+
+Ranges: ``minimum`` and ``maximum`` are inclusive unless ``minimum_exclusive`` or
+``maximum_exclusive`` is set; ``None`` means no bound. NaN and ±inf are always out
+of range. ``bool`` is never accepted as a number.
+
+This module imports only NumPy, :mod:`barsynth.errors` and (for type hints)
+:mod:`collections.abc`, so any part of barsynth may use it without slowing its
+import.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from .errors import ParameterError
+
+__all__ = ["check_array", "check_choice", "check_number", "check_whole"]
+
+_REAL_TYPES = (int, float, np.integer, np.floating)  # bool is an int: excluded separately
+_MAX_SHOWN = 80  # longest repr of a value quoted in a message
+
+
+def _show(value: object) -> str:
+    """``repr(value)`` if it is short and on one line, else a short description."""
+    text = repr(value)
+    if len(text) <= _MAX_SHOWN and "\n" not in text:
+        return text
+    dtype = getattr(value, "dtype", None)
+    return f"<{type(value).__name__}{'' if dtype is None else f' of {dtype}'}>"
+
+
+def _bound(value: float) -> str:
+    return str(value) if isinstance(value, (int, np.integer)) else f"{value:g}"
+
+
+def _allowed(
+    unit: str,
+    minimum: float | None,
+    maximum: float | None,
+    minimum_exclusive: bool,
+    maximum_exclusive: bool,
+    whole: bool = False,
+) -> str:
+    unit = unit or "dimensionless"
+    low = None if minimum is None else f"{'>' if minimum_exclusive else '>='} {_bound(minimum)}"
+    high = None if maximum is None else f"{'<' if maximum_exclusive else '<='} {_bound(maximum)}"
+    if low is None and high is None:
+        text = f"finite {unit} values"
+    elif low is None or high is None:
+        text = f"{low or high} {unit}"
+    elif minimum_exclusive or maximum_exclusive:
+        text = f"{low} and {high} {unit}"
+    else:
+        text = f"{_bound(minimum)} to {_bound(maximum)} {unit}"
+    return f"allowed: {text}" + (" (a whole number)" if whole else "")
+
+
+def _within(
+    values,
+    minimum: float | None,
+    maximum: float | None,
+    minimum_exclusive: bool,
+    maximum_exclusive: bool,
+):
+    """Elementwise: finite and inside the range (a NumPy bool or bool array)."""
+    ok = np.isfinite(values)
+    if minimum is not None:
+        ok = ok & (values > minimum if minimum_exclusive else values >= minimum)
+    if maximum is not None:
+        ok = ok & (values < maximum if maximum_exclusive else values <= maximum)
+    return ok
+
+
+def check_number(
+    name: str,
+    value: object,
+    unit: str,
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    minimum_exclusive: bool = False,
+    maximum_exclusive: bool = False,
+    parse_text: bool = False,
+) -> float:
+    """``value`` as a finite float inside the range, or ParameterError.
+
+    Accepts ``int``, ``float`` and NumPy integer and floating scalars (not
+    ``bool``); with ``parse_text`` also a ``str`` holding a number (as typed on a
+    command line).
+
+    >>> check_number("length_m", 0.3, "m", minimum=0.0, minimum_exclusive=True)
+    0.3
+    """
+    allowed = _allowed(unit, minimum, maximum, minimum_exclusive, maximum_exclusive)
+    number: float | None = None
+    if isinstance(value, _REAL_TYPES) and not isinstance(value, (bool, np.bool_)):
+        number = float(value)
+    elif parse_text and isinstance(value, str):
+        try:
+            number = float(value)
+        except ValueError:
+            pass
+    if number is None:
+        raise ParameterError(f"parameter {name} = {_show(value)} is not a number; {allowed}")
+    if not _within(number, minimum, maximum, minimum_exclusive, maximum_exclusive):
+        raise ParameterError(f"parameter {name} = {_show(value)} is out of range; {allowed}")
+    return number
+
+
+def check_whole(
+    name: str,
+    value: object,
+    unit: str,
+    minimum: int,
+    maximum: int | None = None,
+    *,
+    integral_floats: bool = False,
+) -> int:
+    """``value`` as an ``int`` in ``[minimum, maximum]`` (no upper bound if None).
+
+    Accepts ``int`` and NumPy integers (not ``bool``); with ``integral_floats`` also
+    floats with a whole value such as ``3.0``.
+
+    >>> check_whole("count", 3.0, "", 1, 10, integral_floats=True)
+    3
+    """
+    allowed = _allowed(unit, minimum, maximum, False, False, whole=True)
+    number: int | None = None
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        number = int(value)
+    elif integral_floats and isinstance(value, (float, np.floating)) and float(value).is_integer():
+        number = int(value)
+    if number is None:
+        raise ParameterError(f"parameter {name} = {_show(value)} is not a whole number; {allowed}")
+    if number < minimum or (maximum is not None and number > maximum):
+        raise ParameterError(f"parameter {name} = {_show(value)} is out of range; {allowed}")
+    return number
+
+
+def check_array(
+    name: str,
+    value: object,
+    unit: str,
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    minimum_exclusive: bool = False,
+    maximum_exclusive: bool = False,
+) -> np.ndarray:
+    """``value`` (a scalar or array_like of real numbers) as a float64 array.
+
+    Every element must be finite and inside the range; the message quotes the
+    first element that is not (in C order) and, for arrays, its index. Integer
+    and floating input is accepted; bool, complex, strings and objects are not.
+    A float64 ndarray is returned as it is, not copied.
+
+    >>> check_array("x", [0.0, 0.5], "", minimum=0.0, maximum=1.0)
+    array([0. , 0.5])
+    """
+    allowed = _allowed(unit, minimum, maximum, minimum_exclusive, maximum_exclusive)
+    try:
+        raw = np.asarray(value)
+    except Exception:  # noqa: BLE001 - anything numpy cannot take is a bad argument
+        raw = None
+    if raw is None or raw.dtype.kind not in "iuf":
+        raise ParameterError(f"parameter {name} = {_show(value)} is not a number; {allowed}")
+    arr = raw.astype(np.float64, copy=False)
+    ok = _within(arr, minimum, maximum, minimum_exclusive, maximum_exclusive)
+    if not ok.all():
+        first = int(np.flatnonzero(~ok)[0])
+        where = ""
+        if arr.ndim:
+            index = tuple(int(i) for i in np.unravel_index(first, arr.shape))
+            where = f"; the first bad element is at index {index[0] if arr.ndim == 1 else index}"
+        raise ParameterError(
+            f"parameter {name} = {float(arr.flat[first])!r} is out of range; {allowed}{where}"
+        )
+    return arr
+
+
+def check_choice(
+    name: str,
+    value: object,
+    choices: Sequence[str],
+    *,
+    normalize: Callable[[str], str] | None = None,
+) -> str:
+    """The entry of ``choices`` that the string ``value`` names, or ParameterError.
+
+    ``value`` is stripped and lower-cased, then passed through ``normalize`` (to
+    accept other spellings) before it is looked up.
+
+    >>> check_choice("window", " Hann ", ("hann", "boxcar"))
+    'hann'
+    """
+    if isinstance(value, str):
+        key = value.strip().lower()
+        if normalize is not None:
+            key = normalize(key)
+        if key in choices:
+            return key
+    raise ParameterError(
+        f"parameter {name} = {_show(value)} is not a known choice; "
+        f"allowed: one of {', '.join(choices)}"
+    )

@@ -1,0 +1,32 @@
+"""Every Examples section in the library's docstrings runs and prints what it shows."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+MODULES = [
+    "barsynth.physics.boundary",
+    "barsynth.physics.modes",
+    "barsynth.physics.damping",
+    "barsynth.physics.materials",
+    "barsynth.models.twang",
+    "barsynth.analysis.partials",
+    "barsynth.analysis.plots",
+    "barsynth.parameters",
+]
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples(name):
+    module = importlib.import_module(name)
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.failed == 0
+
+
+def test_the_examples_are_really_there():
+    module = importlib.import_module("barsynth.models.twang")
+    finder = doctest.DocTestFinder()
+    assert sum(len(t.examples) for t in finder.find(module)) >= 5

@@ -1,0 +1,105 @@
+"""Parameter tables (the single description of a model's controls) and preset files."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from barsynth import ParameterError, PresetError
+from barsynth import presets as preset_module
+from barsynth.parameters import BOOL, CHOICE, INT, Parameter, ParameterTable, parse_assignments
+
+TABLE = ParameterTable("demo_model", [
+    Parameter("rate_hz", "Hz", 0.1, 1000.0, 10.0, "a log-scaled rate", scale="log"),
+    Parameter("mix", "", 0.0, 1.0, 0.5, "a linear mix"),
+    Parameter("count", "", 1, 12, 6, "a whole number", kind=INT),
+    Parameter("on", "", None, None, False, "a switch", kind=BOOL),
+    Parameter("mode", "", None, None, "a", "a choice", kind=CHOICE, choices=("a", "b")),
+])
+
+
+def test_resolve_layers_and_frozen_dataclass():
+    p = TABLE.resolve({"rate_hz": "20"}, {"mix": 0.25, "on": "yes", "mode": "B"})
+    assert (p.rate_hz, p.mix, p.count, p.on, p.mode) == (20.0, 0.25, 6, True, "b")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.mix = 1.0  # type: ignore[misc]
+    assert TABLE.as_dict(p)["rate_hz"] == 20.0
+    assert type(p).__name__ == "DemoModelParameters"
+
+
+@pytest.mark.parametrize("name,value,needles", [
+    ("rate_hz", 0.05, ["rate_hz", "0.05", "0.1 to 1000 Hz"]),
+    ("rate_hz", "fast", ["rate_hz", "fast", "not a number"]),
+    ("rate_hz", float("nan"), ["rate_hz", "nan"]),
+    ("rate_hz", True, ["rate_hz"]),
+    ("count", 2.5, ["count", "whole number"]),
+    ("count", 13, ["count", "1 to 12"]),
+    ("on", "perhaps", ["on", "true or false"]),
+    ("mode", "c", ["mode", "one of a, b"]),
+    ("tempo", 1, ["unknown parameter", "tempo", "rate_hz"]),
+])
+def test_bad_values_name_parameter_value_and_range(name, value, needles):
+    with pytest.raises(ParameterError) as info:
+        TABLE.resolve({name: value})
+    for needle in needles:
+        assert needle in str(info.value)
+
+
+@given(st.floats(min_value=0.0, max_value=1.0))
+def test_unit_interval_round_trip(u):
+    p = TABLE["rate_hz"]
+    value = p.from_unit_interval(u)
+    assert 0.1 <= value <= 1000.0
+    assert p.to_unit_interval(value) == pytest.approx(u, abs=1e-9)
+
+
+def test_log_scale_midpoint_is_the_geometric_mean():
+    assert TABLE["rate_hz"].from_unit_interval(0.5) == pytest.approx(10.0)
+    assert TABLE["mix"].from_unit_interval(0.5) == pytest.approx(0.5)
+
+
+def test_table_rejects_inconsistent_definitions():
+    with pytest.raises(ValueError):
+        Parameter("x", "", 1.0, 2.0, 3.0, "default outside")
+    with pytest.raises(ValueError):
+        Parameter("x", "", 0.0, 2.0, 1.0, "log needs a positive minimum", scale="log")
+    with pytest.raises(ValueError):
+        ParameterTable("dup", [Parameter("a", "", 0, 1, 0.5, ""), Parameter("a", "", 0, 1, 0.5, "")])
+
+
+def test_json_and_markdown_come_from_the_same_rows():
+    rows = TABLE.to_json()
+    assert [r["name"] for r in rows] == list(TABLE.names)
+    assert rows[0] == {"name": "rate_hz", "unit": "Hz", "min": 0.1, "max": 1000.0, "default": 10.0,
+                       "doc": "a log-scaled rate", "scale": "log", "kind": "float", "choices": None}
+    md = TABLE.to_markdown()
+    assert md.count("\n") == len(TABLE) + 2
+    assert "| `mode` | - | a / b | a |" in md
+
+
+def test_parse_assignments():
+    assert parse_assignments(["a=1", " b = x=y "]) == {"a": "1", "b": "x=y"}
+    for bad in ("a", "=1"):
+        with pytest.raises(ParameterError, match="NAME=VALUE"):
+            parse_assignments([bad])
+
+
+def test_preset_errors(tmp_path, monkeypatch):
+    folder = tmp_path / "demo"
+    folder.mkdir()
+    (folder / "broken.toml").write_text("[parameters\nq = 1\n")
+    (folder / "empty.toml").write_text("[preset]\ndescription = 'x'\n")
+    (folder / "good.toml").write_text("[parameters]\nq = 100.0\n")
+    monkeypatch.setattr(preset_module, "_folder", lambda model: tmp_path / model)
+    assert preset_module.preset_names("demo") == ("broken", "empty", "good")
+    assert preset_module.preset_parameters("demo", "good") == {"q": 100.0}
+    with pytest.raises(PresetError, match="not valid TOML"):
+        preset_module.load_preset("demo", "broken")
+    with pytest.raises(PresetError, match=r"no \[parameters\]"):
+        preset_module.load_preset("demo", "empty")
+    with pytest.raises(PresetError, match="available: broken, empty, good"):
+        preset_module.load_preset("demo", "missing")
+    assert preset_module.preset_names("nothing-here") == ()
