@@ -57,9 +57,12 @@ def render_voice(voice: Any, duration_s: float) -> np.ndarray:
     return voice.process(int(round(duration * voice.sample_rate)), dtype=np.float64)
 
 
-def normalize_peak(samples: np.ndarray, peak_dbfs: float = NORMALIZE_PEAK_DBFS) -> np.ndarray:
-    """Scale so the largest magnitude is ``peak_dbfs`` dBFS; silence stays silence."""
-    peak = float(np.max(np.abs(samples))) if samples.size else 0.0
-    if peak == 0.0:
-        return samples
-    return samples * (10.0 ** (peak_dbfs / 20.0) / peak)
+def normalize_peak(samples: np.ndarray, peak_dbfs: float = NORMALIZE_PEAK_DBFS,
+                   *, dtype: Any = None) -> np.ndarray:
+    """``samples`` scaled so the largest magnitude is ``peak_dbfs`` dBFS, as ``dtype``
+    (the input's by default); silence stays silence. One pass, no temporaries."""
+    out = np.empty(samples.shape, dtype=dtype or samples.dtype)
+    peak = max(float(samples.max()), -float(samples.min())) if samples.size else 0.0
+    scale = 10.0 ** (peak_dbfs / 20.0) / peak if peak > 0.0 else 1.0
+    np.multiply(samples, scale, out=out, casting="same_kind")
+    return out

@@ -313,7 +313,7 @@ class TwangModel:
         samples = render_voice(self.voice(parameters, sample_rate=sample_rate, seed=seed),
                                duration_s)
         if normalize:
-            samples = normalize_peak(samples)
+            return normalize_peak(samples, dtype=dtype)
         return samples.astype(dtype, copy=False)
 
 
