@@ -222,3 +222,60 @@ def test_docs_parameter_table_is_generated_from_the_table():
     doc = (ROOT / "docs" / "twang.md").read_text(encoding="utf-8")
     inside = doc.split("<!-- parameters:begin -->\n", 1)[1].split("<!-- parameters:end -->", 1)[0]
     assert inside == get_model("twang").table.to_markdown()
+
+
+# -- failures at write time, formats, extremes --------------------------------------------
+@pytest.mark.parametrize("args,needles", [
+    (["--sample-rate", "256000", "-o", "x.ogg"], ["sample_rate", "192000", ".ogg"]),
+    (["--subtype", "FLOAT", "-o", "x.flac"], ["subtype", "flac"]),
+    (["--duration", "0.00001", "-o", "x.wav"], ["duration_s", "one sample"]),
+    (["--set", "youngs_modulus_pa=4e11", "--set", "density_kg_m3=100", "--set", "length_m=0.05",
+      "--set", "thickness_m=0.02", "--sample-rate", "8000", "-o", "x.wav"], ["nyquist"]),
+])
+def test_render_refuses_what_it_cannot_write_well(tmp_path, monkeypatch, args, needles):
+    monkeypatch.chdir(tmp_path)
+    assert_one_line_error(run("render", "twang", "--duration", "0.3", *args) if "--duration" not in args
+                          else run("render", "twang", *args), *needles)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_failing_plot_leaves_no_audio_file_either(tmp_path, monkeypatch):
+    import barsynth.analysis
+
+    def full_disk(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(barsynth.analysis, "plot_sound", full_disk)
+    r = run("render", "twang", "--duration", "0.2", "--plot", str(tmp_path / "p.png"), "-o", str(tmp_path / "a.wav"))
+    assert_one_line_error(r, "no space left", "nothing written")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unwritable_places_are_one_line_errors(tmp_path):
+    assert_one_line_error(run("render", "twang", "--duration", "0.1", "-o", "/proc/barsynth-test.wav"),
+                          "could not write")
+
+
+def test_written_files_get_the_usual_permissions(tmp_path):
+    old = os.umask(0o022)
+    try:
+        out = tmp_path / "m.wav"
+        png = tmp_path / "m.png"
+        assert run("render", "twang", "--duration", "0.2", "--plot", str(png), "-o", str(out)).exit_code == 0
+    finally:
+        os.umask(old)
+    assert out.stat().st_mode & 0o777 == 0o644
+    assert png.stat().st_mode & 0o777 == 0o644
+
+
+@pytest.mark.parametrize("length,thickness", [("1e300", "1e-300"), ("1e150", "1e-150"), ("1e-300", "1e300")])
+def test_modes_refuses_overflowing_bars(length, thickness):
+    r = run("modes", "--material", "steel", "--bc", "free-free", "--length", length,
+            "--thickness", thickness, "--json")
+    assert_one_line_error(r, "length_m", "thickness_m", "finite")
+
+
+def test_ogg_render_at_its_highest_rate(tmp_path):
+    out = tmp_path / "hi.ogg"
+    assert run("render", "twang", "--duration", "0.2", "--sample-rate", "192000", "-o", str(out)).exit_code == 0
+    assert soundfile.info(out).samplerate == 192000

@@ -21,6 +21,7 @@ import click
 from .errors import BarsynthError, ParameterError
 
 AUDIO_FORMATS = {".wav": "WAV", ".flac": "FLAC", ".ogg": "OGG"}
+MAX_OGG_RATE = 192_000.0  # libvorbis refuses (and older builds crash) above this
 SUBTYPES = ("PCM_16", "PCM_24", "FLOAT")
 
 
@@ -234,17 +235,32 @@ def _check_writable_dir(path: Path, what: str) -> None:
         raise ParameterError(f"parameter {what} = {str(path)!r}: folder {str(parent)!r} is not writable")
 
 
-def _atomic_write(path: Path, write) -> None:
-    """Write through a temporary file in the same folder, then rename: never a partial file."""
-    fd, tmp = tempfile.mkstemp(prefix=".barsynth-", suffix=path.suffix, dir=path.resolve().parent)
-    os.close(fd)
+def _write_all(jobs: list[tuple[Path, Any]]) -> None:
+    """Write every ``(path, write(tmp_path))`` job to a temporary file beside its target,
+    then rename them all: a failure anywhere leaves no new or partial file behind.
+    New files get the usual permissions (0666 less the umask)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    temps: list[tuple[str, Path]] = []
     try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+        for path, write in jobs:
+            fd, tmp = tempfile.mkstemp(prefix=".barsynth-", suffix=path.suffix,
+                                       dir=path.resolve().parent)
+            os.close(fd)
+            temps.append((tmp, path))
+            os.chmod(tmp, 0o666 & ~umask)
+            write(tmp)
+        for tmp, path in temps:
+            os.replace(tmp, path)
+    except Exception as exc:
+        for tmp, _ in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        if isinstance(exc, BarsynthError):
+            raise
+        target = temps[-1][1] if temps else jobs[0][0]
+        reason = getattr(exc, "strerror", None) or str(exc).strip().splitlines()[-1]
+        raise BarsynthError(f"could not write {target}: {reason}; nothing written") from None
 
 
 @main.command()
@@ -282,25 +298,32 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
         if plot_path.suffix.lower() != ".png":
             raise ParameterError(f"parameter plot = {str(plot_path)!r} must end in .png")
         _check_writable_dir(plot_path, "plot")
-    if fmt == "OGG" and subtype != "PCM_24":
-        raise ParameterError(f"parameter subtype = {subtype!r} does not apply to .ogg files")
-    samples = model.render(resolved, duration_s=seconds, sample_rate=rate, seed=seed,
-                           normalize=not raw)
     import numpy as np
     import soundfile
 
+    if fmt == "OGG" and subtype != "PCM_24":
+        raise ParameterError(f"parameter subtype = {subtype!r} does not apply to .ogg files")
+    if fmt == "OGG" and rate > MAX_OGG_RATE:
+        raise ParameterError(f"parameter sample_rate = {rate:g} is too high for .ogg files; "
+                             f"allowed: up to {MAX_OGG_RATE:g} Hz")
+    file_subtype = "VORBIS" if fmt == "OGG" else subtype
+    if not soundfile.check_format(fmt, file_subtype):
+        raise ParameterError(f"parameter subtype = {subtype!r} cannot be written to "
+                             f"{output.suffix} files; allowed: PCM_16 or PCM_24")
+    samples = model.render(resolved, duration_s=seconds, sample_rate=rate, seed=seed,
+                           normalize=not raw)
     if not np.all(np.isfinite(samples)):  # a defect, never expected: refuse to write it
         raise BarsynthError("the model produced non-finite samples; nothing written")
     if raw and np.max(np.abs(samples)) > 1.0 and subtype != "FLOAT":
         raise ParameterError("the raw render exceeds full scale; use --subtype FLOAT or drop --raw")
-    file_subtype = "VORBIS" if fmt == "OGG" else subtype
-    _atomic_write(output, lambda tmp: soundfile.write(tmp, samples, int(round(rate)),
-                                                      format=fmt, subtype=file_subtype))
+    jobs = [(output, lambda tmp: soundfile.write(tmp, samples, int(rate), format=fmt,
+                                                  subtype=file_subtype))]
     if plot_path is not None:
         from .analysis import plot_sound
 
-        _atomic_write(plot_path, lambda tmp: plot_sound(
-            samples, rate, tmp, title=f"{model.name}{' ' + preset if preset else ''}"))
+        title = f"{model.name}{' ' + preset if preset else ''}"
+        jobs.append((plot_path, lambda tmp: plot_sound(samples, rate, tmp, title=title)))
+    _write_all(jobs)
     click.echo(f"wrote {output} ({seconds:g} s at {rate:g} Hz)")
 
 
@@ -326,8 +349,8 @@ def analyze(path, as_json, max_partials, plot_path):
     if plot_path is not None:
         from .analysis import plot_sound
 
-        _atomic_write(plot_path, lambda tmp: plot_sound(samples, rate, tmp, title=path.name,
-                                                         partials=partials))
+        _write_all([(plot_path, lambda tmp: plot_sound(samples, rate, tmp, title=path.name,
+                                                        partials=partials))])
     if as_json:
         _json_out({
             "file": str(path),

@@ -15,7 +15,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import ModelError, ParameterError
 from ..parameters import ParameterTable
 
 
@@ -36,6 +36,8 @@ class Voice(Protocol):
     """A streaming voice (JUCE-style life cycle)."""
 
     sample_rate: float
+
+    def prepare(self, sample_rate: float, max_block: int | None = None) -> None: ...
 
     def reset(self) -> None: ...
 
@@ -99,4 +101,7 @@ def resolve_parameters(model: Model, parameters: Any) -> Any:
         return model.table.resolve(parameters)
     if isinstance(parameters, model.table.dataclass):
         return parameters
-    raise TypeError(f"parameters must be a mapping or {model.table.dataclass.__name__}")
+    raise ParameterError(
+        f"parameter parameters = {parameters!r} is not allowed; allowed: None, a mapping "
+        f"of parameter names to values, or {model.table.dataclass.__name__}"
+    )

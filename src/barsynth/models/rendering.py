@@ -50,11 +50,29 @@ def check_block_size(num_samples: Any) -> int:
     return check_whole("num_samples", num_samples, "samples", 0)
 
 
+def check_dtype(dtype: Any) -> np.dtype:
+    """Validate an output sample type: float32 or float64."""
+    try:
+        kind = np.dtype(dtype)
+    except TypeError:
+        kind = None
+    # (``kind is None`` first: NumPy compares None equal to the float64 dtype)
+    if kind is None or kind not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise ParameterError(f"parameter dtype = {dtype!r} is not allowed; allowed: float32 or float64")
+    return kind
+
+
 def render_voice(voice: Any, duration_s: float) -> np.ndarray:
     """Trigger ``voice`` once and return ``duration_s`` seconds of float64 samples."""
     duration = check_duration(duration_s)
+    count = int(round(duration * voice.sample_rate))
+    if count < 1:
+        raise ParameterError(
+            f"parameter duration_s = {duration_s!r} is shorter than one sample; allowed: at "
+            f"least {1.0 / voice.sample_rate:.3g} s at {voice.sample_rate:g} Hz"
+        )
     voice.trigger()
-    return voice.process(int(round(duration * voice.sample_rate)), dtype=np.float64)
+    return voice.process(count, dtype=np.float64)
 
 
 def normalize_peak(samples: np.ndarray, peak_dbfs: float = NORMALIZE_PEAK_DBFS,

@@ -34,10 +34,14 @@ the constants of :mod:`barsynth.models.twang_kernel`:
 * modes fade out over the top 5 % below Nyquist and are silent at or above it;
 * controls are smoothed with a one-pole of ``SMOOTHING_TIME_S`` (5 ms) at the
   control rate (one frame every 2 ms), gains ramp linearly inside a frame;
-* the voice scales each note by ``level / max(sum of oscillator gains, sum of
-  free-bar gains)`` at the trigger; where the oscillators dominate (every preset)
-  the note's first sample (all cosines at phase 0, noise drive at 0) is exactly
-  ``level_db``.
+* the level scale is ``level / max(1.75 x sum of the full-length beta gains, sum
+  of the free-bar beta gains)``, recomputed with every design and ramped like the
+  gains; the mix gains and ``mode_mask`` act on top of it as true gains. With the
+  paper's mix, where the cantilever sum is the larger (every preset), a note's
+  first sample (all cosines at phase 0, noise drive at 0) is exactly ``level_db``;
+* vibrato depth fades in over rates from 0 to 0.5 Hz, so turning vibrato off
+  glides back to pitch; free-bar bands fade out from 30 Hz to 20 Hz and are
+  silent below (a band-pass that low and narrow only stores energy).
 """
 
 from __future__ import annotations
@@ -51,7 +55,14 @@ from ..parameters import BOOL, CHOICE, Parameter, ParameterTable
 from . import twang_kernel as K
 from ..errors import ParameterError
 from .base import Mode, resolve_parameters
-from .rendering import check_block_size, check_sample_rate, check_seed, normalize_peak, render_voice
+from .rendering import (
+    check_block_size,
+    check_dtype,
+    check_sample_rate,
+    check_seed,
+    normalize_peak,
+    render_voice,
+)
 
 SMOOTHING_TIME_S = 0.005
 CONTROL_FRAME_S = 0.002
@@ -250,13 +261,6 @@ class TwangVoice:
     def trigger(self) -> None:
         """Twang: restart every phasor at phase 0 with full amplitude."""
         self._current[:] = self._target
-        _, gains, _ = _design(self._current, self._mode_mask, self.sample_rate)
-        # Scale the note by the larger of the oscillator gains' sum (the first sample,
-        # every cosine at phase 0 with the noise drive at 0, is then exactly the level)
-        # and the free-bar gains' sum (each band peaks near its gain: unit-power noise
-        # of crest ~4 after the x^2 drive's 0.26 rms), so neither group can run away.
-        total = max(float(gains[: K.N_OSC].sum()), float(gains[K.N_OSC:].sum()))
-        self._scal[K.S_NORM] = 1.0 / total if total > 0.0 else 0.0
         self._scal[K.S_PHASE] = 0.0
         self._scal[K.S_TIME] = 0.0
         self._scal[K.S_FRAME_POS] = 0.0
@@ -268,8 +272,7 @@ class TwangVoice:
 
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples (mono), float32 unless ``dtype`` says otherwise."""
-        if np.dtype(dtype) not in (np.float32, np.float64):
-            raise ParameterError(f"parameter dtype = {dtype!r} is not allowed; allowed: float32 or float64")
+        dtype = check_dtype(dtype)
         out = np.empty(check_block_size(num_samples))
         if out.size:
             K.process(out, self._current, self._target, _LOG_MASK, self._smooth_k, self._lambdas,
@@ -292,8 +295,8 @@ class TwangModel:
         return design_modes(parameters, sample_rate=sample_rate)
 
     def voice(self, parameters: Any = None, *, sample_rate: float = 48000.0,
-              seed: int | None = 0) -> TwangVoice:
-        return TwangVoice(parameters, sample_rate=sample_rate, seed=seed)
+              seed: int | None = 0, mode_mask: Any = None) -> TwangVoice:
+        return TwangVoice(parameters, sample_rate=sample_rate, seed=seed, mode_mask=mode_mask)
 
     def render(self, parameters: Any = None, *, duration_s: float = 2.0,
                sample_rate: float = 48000.0, seed: int | None = 0,
@@ -301,7 +304,8 @@ class TwangModel:
         """Render one twang offline: ``duration_s`` seconds at ``sample_rate`` Hz.
 
         With ``normalize`` the peak is set to -1 dBFS; without it the samples are
-        exactly those of a :class:`TwangVoice` triggered once.
+        exactly those of a :class:`TwangVoice` triggered once. A bar none of whose
+        modes lies below Nyquist would be silence: that is refused.
 
         Examples
         --------
@@ -310,8 +314,15 @@ class TwangModel:
         >>> samples.dtype, samples.shape
         (dtype('float32'), (48000,))
         """
-        samples = render_voice(self.voice(parameters, sample_rate=sample_rate, seed=seed),
-                               duration_s)
+        dtype = check_dtype(dtype)
+        voice = self.voice(parameters, sample_rate=sample_rate, seed=seed)
+        if not design_modes(voice.parameters, sample_rate=voice.sample_rate):
+            raise ParameterError(
+                "parameters put every mode of this ruler at or above Nyquist "
+                f"({voice.sample_rate / 2:g} Hz) or at zero gain; allowed: settings with at least "
+                "one audible mode (a longer, thinner or softer ruler, or a higher sample_rate)"
+            )
+        samples = render_voice(voice, duration_s)
         if normalize:
             return normalize_peak(samples, dtype=dtype)
         return samples.astype(dtype, copy=False)

@@ -59,6 +59,9 @@ LOG_MAP_FLOOR_HZ = 1.0  # log gain mapping: x = ln(f/1 Hz) / ln(nyquist/1 Hz)
 NYQUIST_TAPER = 0.05  # gains fade to 0 over the top 5 % below Nyquist; silent at/above
 VIBRATO_MAX_RELATIVE_DEPTH = 0.06  # cap: 6 % (about one semitone)
 SLIDE_RISE = 0.35  # slide raises the short-cantilever modes by 35 %
+VIBRATO_FADE_RATE_HZ = 0.5  # below this rate the vibrato depth fades to 0 (glides home)
+MIN_BAND_HZ = 20.0  # free-bar bands fade out from 30 Hz to 20 Hz and are silent below
+REFERENCE_SHORT_GAIN = 0.75  # the paper's short/full ratio, used by the level scale
 
 # -- scalar state layout ------------------------------------------------------------------
 S_PHASE = 0  # drive phasor at the full-length fundamental, [0, 1)
@@ -68,12 +71,11 @@ S_LOWPASS_K = 3
 S_TIME = 4  # samples since the trigger (float)
 S_FRAME_POS = 5  # position inside the current control frame
 S_LFO_PHASE = 6
-S_NORM = 7  # output scale: level / (sum of mode gains at the trigger)
-S_FORCE = 8  # 1 -> design at the next frame start even if nothing moves
-S_DYNAMIC = 9  # 1 while the last design is still in force with ramps to finish
-S_X1 = 10  # low-passed noise one and two samples back (band-pass input history)
-S_X2 = 11
-N_SCALARS = 12
+S_FORCE = 7  # 1 -> design at the next frame start even if nothing moves
+S_DYNAMIC = 8  # 1 while the last design is still in force with ramps to finish
+S_X1 = 9  # low-passed noise one and two samples back (band-pass input history)
+S_X2 = 10
+N_SCALARS = 11
 
 # Per-sample loops may fuse a*b+c into one FMA instruction (shorter recursion
 # latency); nothing else of fast-math. The result is still deterministic.
@@ -100,7 +102,11 @@ def design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin, freqs, gain
     ``mode_mask`` (18 values, 1 = sound, 0 = mute) multiplies the gains. Modes are
     ordered full cantilever (0-5), short cantilever (6-11), free bar (12-17).
     ``time_s`` since the trigger drives the slide, ``lfo_sin`` in [-1, 1] the vibrato.
-    Returns the drive-phasor frequency (the full-length fundamental, with vibrato).
+    Returns the drive-phasor frequency (the full-length fundamental, with vibrato) and
+    the level scale ``1 / max(S_c, S_f)``: ``S_c`` the beta gains of the full-length
+    modes times 1.75 (the paper's mix), ``S_f`` those of the free modes. It ignores
+    the mix gains and the mask, so those act as true gains; with the paper's mix
+    and ``S_c >= S_f`` a note's first sample is exactly the level.
     """
     nyquist = 0.5 * sample_rate
     wave_const = math.sqrt(params[P_YOUNGS] / params[P_DENSITY]) * params[P_THICKNESS] / math.sqrt(12.0)
@@ -148,6 +154,12 @@ def design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin, freqs, gain
             g_lin = math.exp(lin_lp[i] - best_lin)
             g_log = math.exp(log_lp[i] - best_log)
             gains[i] = (1.0 - log_weight) * g_lin + log_weight * g_log
+    sum_c = 0.0
+    sum_f = 0.0
+    for n in range(MODES_PER_GROUP):
+        sum_c += gains[n] * (1.0 + REFERENCE_SHORT_GAIN)
+        sum_f += gains[2 * MODES_PER_GROUP + n]
+    norm = 1.0 / max(sum_c, sum_f) if max(sum_c, sum_f) > 0.0 else 0.0
     for n in range(MODES_PER_GROUP):
         gains[MODES_PER_GROUP + n] = gains[n] * params[P_SHORT_GAIN]
         gains[n] *= params[P_FULL_GAIN]
@@ -165,6 +177,7 @@ def design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin, freqs, gain
                 loudest = i
         if gains[loudest] > 0.0:
             rel = min(params[P_VIB_DEPTH] / freqs[loudest], VIBRATO_MAX_RELATIVE_DEPTH)
+            rel *= min(1.0, params[P_VIB_RATE] / VIBRATO_FADE_RATE_HZ)
             factor = 1.0 + rel * lfo_sin
     slide = 1.0 + SLIDE_RISE * params[P_SLIDE] * _smoothstep(time_s / params[P_SLIDE_TIME])
     phasor_hz = freqs[0] * factor
@@ -179,22 +192,33 @@ def design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin, freqs, gain
             gains[i] = 0.0
         elif edge < 1.0:
             gains[i] *= edge
-    return phasor_hz
+        if i >= 2 * MODES_PER_GROUP:
+            # A band-pass that low and narrow only stores energy: fade it out.
+            low = (f - MIN_BAND_HZ) / (0.5 * MIN_BAND_HZ)
+            if low <= 0.0:
+                gains[i] = 0.0
+            elif low < 1.0:
+                gains[i] *= low
+    return phasor_hz, norm
 
 
 @njit(cache=True)
 def _bandpass(centre_hz, band_q, sample_rate, gains_out, b):
-    """RBJ constant-peak band-pass section coefficients (b1 = 0, b2 = -b0)."""
+    """RBJ constant-peak band-pass section coefficients (b1 = 0, b2 = -b0).
+
+    Two identical sections in cascade have an equivalent noise bandwidth of
+    (pi/4) centre/Q; the first section's input is scaled so white noise keeps its
+    power. Scaling at the input keeps both sections' states of order one for any
+    centre and Q, so sweeping a band never releases stored energy at a high gain.
+    """
     w0 = 2.0 * math.pi * centre_hz / sample_rate
     alpha = math.sin(w0) / (2.0 * band_q)
     inv = 1.0 / (1.0 + alpha)
-    gains_out[0, b] = alpha * inv  # b0
+    enbw = 0.25 * math.pi * centre_hz / band_q
+    gains_out[0, b] = alpha * inv * math.sqrt(0.5 * sample_rate / max(enbw, 1e-9))  # b0, first
     gains_out[1, b] = -2.0 * math.cos(w0) * inv  # a1
     gains_out[2, b] = (1.0 - alpha) * inv  # a2
-    # Two identical sections in cascade have an equivalent noise bandwidth of
-    # (pi/4) * centre/Q; scale the second so white noise keeps its power.
-    enbw = 0.25 * math.pi * centre_hz / band_q
-    gains_out[3, b] = gains_out[0, b] * math.sqrt(0.5 * sample_rate / max(enbw, 1e-9))
+    gains_out[3, b] = alpha * inv  # b0, second
 
 
 
@@ -220,19 +244,18 @@ def _control(params, target, log_mask, smooth_k, lambdas, mode_mask, sample_rate
     vibrato = params[P_VIB_RATE] > 0.0 and params[P_VIB_DEPTH] > 0.0
     sliding = params[P_SLIDE] > 0.0 and time_s <= params[P_SLIDE_TIME] + frame_len / sample_rate
     force = scal[S_FORCE] != 0.0
-    if not (force or (not converged) or vibrato or sliding):
-        if scal[S_DYNAMIC] != 0.0:  # the last ramps have finished: hold
-            osc_gain[0, :] = osc_gain[2, :]
-            osc_gain[1, :] = 0.0
-            band_gain[0, :] = band_gain[2, :]
-            band_gain[1, :] = 0.0
-            scal[S_DYNAMIC] = 0.0
-        return
+    dynamic = force or (not converged) or vibrato or sliding
+    if not dynamic and scal[S_DYNAMIC] == 0.0:
+        return  # nothing moves and the last design is the resting one
+    # Design; a static frame right after a dynamic one designs once more, so the
+    # resting state (vibrato off, slide finished, targets reached) is exact.
+    scal[S_DYNAMIC] = 1.0 if dynamic else 0.0
     lfo_sin = math.sin(2.0 * math.pi * scal[S_LFO_PHASE]) if vibrato else 0.0
-    phasor_hz = design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin, freqs, gains, alphas)
+    phasor_hz, norm = design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin,
+                             freqs, gains, alphas)
     scal[S_PHASE_INC] = phasor_hz / sample_rate
     scal[S_LOWPASS_K] = 1.0 - math.exp(-2.0 * math.pi * params[P_NOISE_CUTOFF] / sample_rate)
-    level = 10.0 ** (params[P_LEVEL_DB] / 20.0)
+    level = 10.0 ** (params[P_LEVEL_DB] / 20.0) * norm
     ramp = 1.0 / frame_len
     for j in range(N_OSC):
         r = math.exp(-alphas[j] / sample_rate)
@@ -270,22 +293,20 @@ def _control(params, target, log_mask, smooth_k, lambdas, mode_mask, sample_rate
             band_gain[1, b] = (g - band_gain[0, b]) * ramp
         band_gain[2, b] = g
     scal[S_FORCE] = 0.0
-    scal[S_DYNAMIC] = 1.0
 
 
 @njit(cache=True)
 def _cull(scal, osc_z, osc_gain, band_env, band_gain, osc_active, band_active):
     """Choose the modes worth computing this frame; returns (n_osc, n_bands)."""
-    norm = scal[S_NORM]
     n_osc = 0
     for j in range(N_OSC):
         amp = math.sqrt(osc_z[0, j] ** 2 + osc_z[1, j] ** 2)
-        if amp * max(osc_gain[0, j], osc_gain[2, j]) * norm >= CULL_LEVEL:
+        if amp * max(osc_gain[0, j], osc_gain[2, j]) >= CULL_LEVEL:
             osc_active[n_osc] = j
             n_osc += 1
     n_bands = 0
     for b in range(N_BANDS):
-        if band_env[b] * max(band_gain[0, b], band_gain[2, b]) * norm * BAND_PEAK_FACTOR >= CULL_LEVEL:
+        if band_env[b] * max(band_gain[0, b], band_gain[2, b]) * BAND_PEAK_FACTOR >= CULL_LEVEL:
             band_active[n_bands] = b
             n_bands += 1
     return n_osc, n_bands
@@ -351,14 +372,13 @@ def _end_frame(frame_len, osc_z, osc_pow, osc_gain, band_env, band_pow, band_gai
 def _render(out, start, k0, m, scal, rng, osc_z, osc_pow, osc_gain, band_state, band_coef,
             band_env, band_pow, band_gain, excitation, osc_active, band_active, n_osc, n_bands):
     """Samples ``k0 .. k0+m-1`` of the current frame into ``out[start:start+m]``."""
-    norm = scal[S_NORM]
     dst = out[start:start + m]
     dst[:] = 0.0
     # Oscillator bank: out[k] += Re((g + k dg) z0 W[k]) -- a matrix-vector product.
     for a in range(n_osc):
         j = osc_active[a]
-        zr = osc_z[0, j] * norm
-        zi = osc_z[1, j] * norm
+        zr = osc_z[0, j]
+        zi = osc_z[1, j]
         g0 = osc_gain[0, j]
         dg = osc_gain[1, j]
         wr = osc_pow[0, j, k0:k0 + m]
@@ -408,15 +428,15 @@ def _render(out, start, k0, m, scal, rng, osc_z, osc_pow, osc_gain, band_state, 
         b = band_active[a]
         c = band_active[a + 1] if a + 1 < n_bands else -1
         if c < 0:
-            _band(dst, diff, k0, m, b, norm, band_state, band_coef, band_env, band_pow, band_gain)
+            _band(dst, diff, k0, m, b, band_state, band_coef, band_env, band_pow, band_gain)
         else:
-            _band_pair(dst, diff, k0, m, b, c, norm, band_state, band_coef, band_env,
+            _band_pair(dst, diff, k0, m, b, c, band_state, band_coef, band_env,
                        band_pow, band_gain)
         a += 2
 
 
 @njit(cache=True, fastmath=_CONTRACT)
-def _band(dst, diff, k0, m, b, norm, band_state, band_coef, band_env, band_pow, band_gain):
+def _band(dst, diff, k0, m, b, band_state, band_coef, band_env, band_pow, band_gain):
     """One 4th-order band (two direct-form-I sections) with its gain and decay."""
     b0a = band_coef[0, b]
     a1 = band_coef[1, b]
@@ -426,7 +446,7 @@ def _band(dst, diff, k0, m, b, norm, band_state, band_coef, band_env, band_pow, 
     ya2 = band_state[1, b]
     yb1 = band_state[2, b]
     yb2 = band_state[3, b]
-    env0 = band_env[b] * norm
+    env0 = band_env[b]
     g0 = band_gain[0, b]
     dg = band_gain[1, b]
     epow = band_pow[b, k0:k0 + m]
@@ -456,7 +476,7 @@ def _band(dst, diff, k0, m, b, norm, band_state, band_coef, band_env, band_pow, 
 
 
 @njit(cache=True, fastmath=_CONTRACT)
-def _band_pair(dst, diff, k0, m, b, c, norm, band_state, band_coef, band_env, band_pow,
+def _band_pair(dst, diff, k0, m, b, c, band_state, band_coef, band_env, band_pow,
                band_gain):
     """Two bands in one loop; the same arithmetic as :func:`_band` for each."""
     pb0a = band_coef[0, b]
@@ -475,8 +495,8 @@ def _band_pair(dst, diff, k0, m, b, c, norm, band_state, band_coef, band_env, ba
     qya2 = band_state[1, c]
     qyb1 = band_state[2, c]
     qyb2 = band_state[3, c]
-    penv = band_env[b] * norm
-    qenv = band_env[c] * norm
+    penv = band_env[b]
+    qenv = band_env[c]
     pg0 = band_gain[0, b]
     pdg = band_gain[1, b]
     qg0 = band_gain[0, c]

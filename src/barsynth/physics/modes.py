@@ -31,6 +31,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..checks import check_array, check_number, check_whole
 from .boundary import MAX_COUNT, _check_bc, _root, lambdas
 
@@ -112,10 +113,22 @@ def bar_frequencies(
     ...                 thickness_m=0.003, bc="clamped-free", count=2).round(1)
     array([ 35.5, 222.3])
     """
-    a = bending_wave_constant(youngs_modulus_pa, density_kg_m3, thickness_m)
     length = check_number("length_m", length_m, "m", minimum=0.0, minimum_exclusive=True)
     lam = lambdas(bc, count)
-    return a * lam**2 / (2.0 * math.pi * length**2)
+    try:
+        a = bending_wave_constant(youngs_modulus_pa, density_kg_m3, thickness_m)
+        with np.errstate(over="ignore", under="ignore", divide="ignore", invalid="ignore"):
+            freqs = a * lam**2 / (2.0 * math.pi * length**2)
+    except OverflowError:
+        freqs = np.full(lam.shape, math.inf)
+    if not np.all(np.isfinite(freqs) & (freqs > 0.0)):
+        raise ParameterError(
+            f"parameters youngs_modulus_pa = {youngs_modulus_pa!r}, density_kg_m3 = "
+            f"{density_kg_m3!r}, length_m = {length_m!r}, thickness_m = {thickness_m!r} give "
+            "frequencies that are not finite positive numbers; allowed: values whose "
+            "frequencies sqrt(E/rho) h / sqrt(12) lambda^2 / (2 pi L^2) stay within float range (Hz)"
+        )
+    return freqs
 
 
 def _basis(xi: np.ndarray, lam: float, order: int) -> np.ndarray:
