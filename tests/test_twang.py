@@ -295,6 +295,17 @@ def _click_measures(x: np.ndarray, change: int, rate: int) -> tuple[float, float
     return across / max(before, after), spike
 
 
+def _measure_change(params, name, value, *, seed=0, rate=48000) -> tuple[float, float]:
+    """Trigger, play 0.3 s, change one parameter, play 0.1 s: the click measures."""
+    voice = TwangVoice(params, sample_rate=rate, seed=seed)
+    voice.trigger()
+    before = voice.process(int(0.3 * rate), dtype=np.float64)
+    voice.set_parameters(**{name: value})
+    x = np.concatenate([before, voice.process(int(0.1 * rate), dtype=np.float64)])
+    assert np.all(np.isfinite(x))
+    return _click_measures(x, before.size, rate)
+
+
 MAX_STEP_RATIO = 1.5
 MAX_HIGHPASS_SPIKE = 5e-3  # -46 dB re the signal's peak
 
@@ -326,15 +337,7 @@ NOISY_CHANGES = [("noise_cutoff_hz", 500.0), ("free_band_q", 60.0), ("free_band_
 def test_change_with_the_noise_bands_sounding_does_not_click(name, value):
     """With the free bar on, steps are noise; only the 12 kHz high-pass spike is a fair
     measure (every band of this ruler lies below 3 kHz)."""
-    rate = 48000
-    voice = TwangVoice({"q": 400.0}, sample_rate=rate, seed=5)
-    voice.trigger()
-    before = voice.process(int(0.3 * rate), dtype=np.float64)
-    voice.set_parameters(**{name: value})
-    after = voice.process(int(0.1 * rate), dtype=np.float64)
-    x = np.concatenate([before, after])
-    assert np.all(np.isfinite(x))
-    _, spike = _click_measures(x, before.size, rate)
+    _, spike = _measure_change({"q": 400.0}, name, value, seed=5)
     assert spike <= MAX_HIGHPASS_SPIKE, (name, spike)
 
 
@@ -383,15 +386,7 @@ def test_random_changes_mid_note_stay_finite_and_bounded(first, second, rate):
 
 @pytest.mark.parametrize("name,value", CHANGES)
 def test_parameter_change_while_sounding_does_not_click(name, value):
-    rate = 48000
-    voice = TwangVoice(deterministic(q=800.0), sample_rate=rate)
-    voice.trigger()
-    before = voice.process(int(0.3 * rate), dtype=np.float64)
-    voice.set_parameters(**{name: value})
-    after = voice.process(int(0.1 * rate), dtype=np.float64)
-    x = np.concatenate([before, after])
-    assert np.all(np.isfinite(x))
-    ratio, spike = _click_measures(x, before.size, rate)
+    ratio, spike = _measure_change(deterministic(q=800.0), name, value)
     assert ratio <= MAX_STEP_RATIO, (name, ratio)
     assert spike <= MAX_HIGHPASS_SPIKE, (name, spike)
 
