@@ -279,3 +279,47 @@ def test_ogg_render_at_its_highest_rate(tmp_path):
     out = tmp_path / "hi.ogg"
     assert run("render", "twang", "--duration", "0.2", "--sample-rate", "192000", "-o", str(out)).exit_code == 0
     assert soundfile.info(out).samplerate == 192000
+
+
+@pytest.mark.parametrize("args", [
+    ["modes", "--count", "abc", "--material", "steel", "--length", "1", "--thickness", "0.01", "--bc", "free-free"],
+    ["render", "twang"],
+    ["render"],
+    ["no-such-command"],
+    ["analyze", "--max-partials", "1e309", "x.wav"],
+])
+def test_usage_errors_are_one_line_too(args):
+    r = run(*args)
+    assert r.exit_code == 2
+    assert len(r.stderr.strip().splitlines()) == 1 and r.stderr.startswith("barsynth: error:")
+
+
+def test_help_and_version_still_exit_0():
+    assert run("--help").exit_code == 0
+    assert run("render", "--help").exit_code == 0
+    assert "barsynth" in run("--version").stdout
+
+
+def test_analyze_refuses_a_fifo_and_a_very_low_rate(tmp_path):
+    fifo = tmp_path / "pipe.wav"
+    os.mkfifo(fifo)
+    assert_one_line_error(run("analyze", str(fifo)), "not a regular file")
+    low = tmp_path / "low.wav"
+    soundfile.write(low, np.zeros(10), 1)
+    assert_one_line_error(run("analyze", str(low)), "low.wav", "sample rate")
+
+
+def test_output_through_a_symlink_keeps_the_link_and_the_mode(tmp_path):
+    target = tmp_path / "real.wav"
+    target.write_bytes(b"old")
+    os.chmod(target, 0o640)
+    link = tmp_path / "link.wav"
+    link.symlink_to(target)
+    assert run("render", "twang", "--duration", "0.1", "-o", str(link)).exit_code == 0
+    assert link.is_symlink()
+    assert soundfile.info(target).frames == 4800
+    assert target.stat().st_mode & 0o777 == 0o640
+
+
+def test_empty_preset_name_is_refused(tmp_path):
+    assert_one_line_error(run("render", "twang", "-p", "", "-o", str(tmp_path / "x.wav")), "preset")

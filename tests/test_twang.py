@@ -493,3 +493,36 @@ def test_lambdas_used_are_the_physics_layer_ones():
 
     assert np.array_equal(_lambdas()[:6], lambdas("clamped-free", 6))
     assert np.array_equal(_lambdas()[6:], lambdas("free-free", 6))
+
+
+def test_retrigger_after_a_change_sounds_like_a_fresh_note():
+    """The old note's filter state must not ring out through the new note's bands."""
+    rate = 48000.0
+    old = {"q": 400.0}
+    new = {"youngs_modulus_pa": 1e8, "density_kg_m3": 900.0, "length_m": 0.5, "thickness_m": 0.003,
+           "free_band_q": 100.0, "level_db": 0.0}
+    fresh = MODEL.render(new, duration_s=0.5, sample_rate=rate, normalize=False, dtype=np.float64)
+    voice = TwangVoice(old, sample_rate=rate)
+    voice.trigger()
+    voice.process(int(0.2 * rate))
+    voice.set_parameters(**new)
+    voice.trigger()
+    again = voice.process(int(0.5 * rate), dtype=np.float64)
+    assert np.max(np.abs(again)) < 1.5 * np.max(np.abs(fresh))
+
+
+def test_renders_without_an_audible_mode_are_refused():
+    sub_audio = {"youngs_modulus_pa": 1e8, "density_kg_m3": 22000.0, "length_m": 1.0, "thickness_m": 0.0003}
+    assert all(m.frequency_hz < 20 for m in MODEL.describe(sub_audio))
+    with pytest.raises(ParameterError, match="20 Hz"):
+        MODEL.render(sub_audio, duration_s=0.2)
+
+
+def test_extreme_values_of_the_wrong_size_are_parameter_errors():
+    voice = TwangVoice()
+    with pytest.raises(ParameterError, match="q"):
+        voice.set_parameters(q=10**400)
+    with pytest.raises(ParameterError, match="num_samples"):
+        voice.process(2**62)
+    with pytest.raises(ParameterError, match="dtype"):
+        voice.process(4, dtype=None)

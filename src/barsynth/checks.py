@@ -23,6 +23,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+import math
+
 import numpy as np
 
 from .errors import ParameterError
@@ -107,7 +109,10 @@ def check_number(
     allowed = _allowed(unit, minimum, maximum, minimum_exclusive, maximum_exclusive)
     number: float | None = None
     if isinstance(value, _REAL_TYPES) and not isinstance(value, (bool, np.bool_)):
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an int beyond float range: out of any range
+            number = math.inf
     elif parse_text and isinstance(value, str):
         try:
             number = float(value)

@@ -31,13 +31,25 @@ def _fail(message: str) -> None:
 
 
 class _Group(click.Group):
-    """Turn barsynth's own errors into one line and exit status 2."""
+    """One line and exit status 2 for every refusal: barsynth's own errors, click's
+    usage errors (a bad option value, a missing argument) and failures to write."""
 
-    def invoke(self, ctx: click.Context) -> Any:
+    def main(self, *args: Any, **kwargs: Any) -> Any:
+        kwargs["standalone_mode"] = False
         try:
-            return super().invoke(ctx)
+            result = super().main(*args, **kwargs)
+        except click.UsageError as exc:
+            _fail(exc.format_message())
+        except click.Abort:
+            _fail("aborted")
         except BarsynthError as exc:
             _fail(str(exc))
+        except BrokenPipeError:  # the reader went away (`barsynth params twang | head -1`)
+            sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - so the exit flush stays quiet
+            sys.exit(1)
+        except OSError as exc:  # stdout itself failed, e.g. a full disk
+            _fail(f"could not write output: {exc.strerror or exc}")
+        sys.exit(result if isinstance(result, int) else 0)
 
 
 def _json_out(data: Any) -> None:
@@ -57,7 +69,7 @@ def _finite_or_none(x: float) -> float | None:
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(package_name="barsynth")
+@click.version_option(package_name="barsynth", prog_name="barsynth")
 def main() -> None:
     """barsynth: physically derived synthesis of vibrating bars.
 
@@ -150,7 +162,7 @@ def _resolve(model, preset: str | None, assignments: tuple[str, ...]):
     from .presets import preset_parameters
 
     layers = []
-    if preset:
+    if preset is not None:
         layers.append(preset_parameters(model.name, preset))
     layers.append(parse_assignments(assignments))
     return model.table.resolve(*layers)
@@ -158,7 +170,8 @@ def _resolve(model, preset: str | None, assignments: tuple[str, ...]):
 
 _preset_option = click.option("--preset", "-p", metavar="P", help="Start from a preset (see `barsynth presets`).")
 _set_option = click.option("--set", "-s", "assignments", multiple=True, metavar="NAME=VALUE",
-                           help="Set a parameter (repeatable); see `barsynth params MODEL`.")
+                           help="Set a parameter (repeatable; a later --set of the same name "
+                                "wins); see `barsynth params MODEL`.")
 _rate_option = click.option("--sample-rate", "sample_rate", default="48000", show_default=True,
                             metavar="HZ", help="Sample rate in Hz.")
 
@@ -238,17 +251,19 @@ def _check_writable_dir(path: Path, what: str) -> None:
 def _write_all(jobs: list[tuple[Path, Any]]) -> None:
     """Write every ``(path, write(tmp_path))`` job to a temporary file beside its target,
     then rename them all: a failure anywhere leaves no new or partial file behind.
-    New files get the usual permissions (0666 less the umask)."""
+    A symbolic link is followed (its target is replaced); an existing file keeps its
+    permissions, a new one gets the usual 0666 less the umask."""
     umask = os.umask(0)
     os.umask(umask)
     temps: list[tuple[str, Path]] = []
     try:
         for path, write in jobs:
-            fd, tmp = tempfile.mkstemp(prefix=".barsynth-", suffix=path.suffix,
-                                       dir=path.resolve().parent)
+            target = path.resolve()
+            mode = (target.stat().st_mode & 0o7777) if target.is_file() else (0o666 & ~umask)
+            fd, tmp = tempfile.mkstemp(prefix=".barsynth-", suffix=path.suffix, dir=target.parent)
             os.close(fd)
-            temps.append((tmp, path))
-            os.chmod(tmp, 0o666 & ~umask)
+            temps.append((tmp, target))
+            os.chmod(tmp, mode)
             write(tmp)
         for tmp, path in temps:
             os.replace(tmp, path)

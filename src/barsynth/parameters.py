@@ -132,10 +132,12 @@ class Parameter:
     def _to_number(self, value: Any) -> float:
         if isinstance(value, bool):
             raise self._error(value)
-        if isinstance(value, (int, float)):
-            return float(value)
         try:
+            if isinstance(value, (int, float)):
+                return float(value)
             return float(str(value).strip())
+        except OverflowError:  # an int beyond float range: out of every range
+            return math.inf
         except ValueError:
             raise ParameterError(
                 f"parameter {self.name} = {value!r} is not a number; "

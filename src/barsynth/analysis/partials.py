@@ -52,6 +52,7 @@ import dataclasses
 import functools
 import math
 import os
+import stat
 from dataclasses import dataclass
 from typing import Any
 
@@ -1233,6 +1234,9 @@ def band_decay_t60(
     return float(-60.0 / slope)
 
 
+MIN_AUDIO_RATE_HZ = 100.0
+
+
 def load_audio(path: str | os.PathLike[str]) -> tuple[np.ndarray, float]:
     """Read a WAV, FLAC or OGG file as mono float64 samples and its sample rate (Hz).
 
@@ -1247,6 +1251,8 @@ def load_audio(path: str | os.PathLike[str]) -> tuple[np.ndarray, float]:
         raise AudioFileError(f"audio file {name}: no such file")
     if os.path.isdir(name):
         raise AudioFileError(f"audio file {name}: is a directory, not a sound file")
+    if not stat.S_ISREG(os.stat(name).st_mode):  # a FIFO or device would block or never end
+        raise AudioFileError(f"audio file {name}: is not a regular file")
     try:
         data, rate = soundfile.read(name, dtype="float64", always_2d=True)
     except (RuntimeError, soundfile.SoundFileError, OSError, ValueError) as exc:
@@ -1256,6 +1262,11 @@ def load_audio(path: str | os.PathLike[str]) -> tuple[np.ndarray, float]:
         ) from None
     if data.shape[0] == 0:
         raise AudioFileError(f"audio file {name}: contains no samples")
+    if rate < MIN_AUDIO_RATE_HZ:
+        raise AudioFileError(
+            f"audio file {name}: sample rate {rate} Hz is too low; allowed: at least "
+            f"{MIN_AUDIO_RATE_HZ:g} Hz"
+        )
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0].copy()
     if not np.all(np.isfinite(mono)):
         raise AudioFileError(f"audio file {name}: contains non-finite samples")

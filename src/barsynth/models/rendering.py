@@ -13,6 +13,7 @@ MIN_SAMPLE_RATE = 8_000.0
 MAX_SAMPLE_RATE = 384_000.0
 MAX_DURATION_S = 600.0
 NORMALIZE_PEAK_DBFS = -1.0
+MAX_BLOCK_SAMPLES = int(MAX_DURATION_S * MAX_SAMPLE_RATE)  # the longest render at the highest rate
 
 
 def check_sample_rate(sample_rate: Any) -> float:
@@ -47,13 +48,13 @@ def check_duration(duration_s: Any) -> float:
 
 def check_block_size(num_samples: Any) -> int:
     """Validate a block length in samples (a whole number, 0 or more)."""
-    return check_whole("num_samples", num_samples, "samples", 0)
+    return check_whole("num_samples", num_samples, "samples", 0, MAX_BLOCK_SAMPLES)
 
 
 def check_dtype(dtype: Any) -> np.dtype:
     """Validate an output sample type: float32 or float64."""
     try:
-        kind = np.dtype(dtype)
+        kind = None if dtype is None else np.dtype(dtype)
     except TypeError:
         kind = None
     # (``kind is None`` first: NumPy compares None equal to the float64 dtype)

@@ -67,6 +67,7 @@ from .rendering import (
 SMOOTHING_TIME_S = 0.005
 CONTROL_FRAME_S = 0.002
 GROUPS = ("full-cantilever", "short-cantilever", "free-bar")
+AUDIBLE_MIN_HZ = 20.0  # an offline render needs one mode at least this high
 
 TWANG_TABLE = ParameterTable(
     "twang",
@@ -269,6 +270,12 @@ class TwangVoice:
         self._osc_z[0] = 1.0
         self._osc_z[1] = 0.0
         self._band_env[:] = 1.0
+        # The new note's filters start empty: state left by the old note (with other
+        # coefficients) would otherwise ring out through the new, maybe narrow, bands.
+        self._band_state[:] = 0.0
+        self._scal[K.S_LOWPASS] = 0.0
+        self._scal[K.S_X1] = 0.0
+        self._scal[K.S_X2] = 0.0
 
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples (mono), float32 unless ``dtype`` says otherwise."""
@@ -316,11 +323,12 @@ class TwangModel:
         """
         dtype = check_dtype(dtype)
         voice = self.voice(parameters, sample_rate=sample_rate, seed=seed)
-        if not design_modes(voice.parameters, sample_rate=voice.sample_rate):
+        modes = design_modes(voice.parameters, sample_rate=voice.sample_rate)
+        if not any(m.frequency_hz >= AUDIBLE_MIN_HZ for m in modes):
             raise ParameterError(
-                "parameters put every mode of this ruler at or above Nyquist "
-                f"({voice.sample_rate / 2:g} Hz) or at zero gain; allowed: settings with at least "
-                "one audible mode (a longer, thinner or softer ruler, or a higher sample_rate)"
+                f"parameters put every mode of this ruler below {AUDIBLE_MIN_HZ:g} Hz, at or above "
+                f"Nyquist ({voice.sample_rate / 2:g} Hz) or at zero gain; allowed: settings with "
+                "at least one audible mode (change length, thickness or material, or the sample_rate)"
             )
         samples = render_voice(voice, duration_s)
         if normalize:

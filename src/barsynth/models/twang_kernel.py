@@ -296,7 +296,7 @@ def _control(params, target, log_mask, smooth_k, lambdas, mode_mask, sample_rate
 
 
 @njit(cache=True)
-def _cull(scal, osc_z, osc_gain, band_env, band_gain, osc_active, band_active):
+def _cull(scal, osc_z, osc_gain, band_env, band_gain, band_state, osc_active, band_active):
     """Choose the modes worth computing this frame; returns (n_osc, n_bands)."""
     n_osc = 0
     for j in range(N_OSC):
@@ -309,6 +309,11 @@ def _cull(scal, osc_z, osc_gain, band_env, band_gain, osc_active, band_active):
         if band_env[b] * max(band_gain[0, b], band_gain[2, b]) * BAND_PEAK_FACTOR >= CULL_LEVEL:
             band_active[n_bands] = b
             n_bands += 1
+        else:  # not computed: start from rest if it comes back, never from stale state
+            band_state[0, b] = 0.0
+            band_state[1, b] = 0.0
+            band_state[2, b] = 0.0
+            band_state[3, b] = 0.0
     return n_osc, n_bands
 
 
@@ -333,7 +338,7 @@ def process(out, params, target, log_mask, smooth_k, lambdas, mode_mask, sample_
                      scal, osc_pow, osc_gain, band_coef, band_pow, band_gain,
                      freqs, gains, alphas)
             scal[S_LFO_PHASE] = (scal[S_LFO_PHASE] + params[P_VIB_RATE] * lfo_step) % 1.0
-            counts[0], counts[1] = _cull(scal, osc_z, osc_gain, band_env, band_gain,
+            counts[0], counts[1] = _cull(scal, osc_z, osc_gain, band_env, band_gain, band_state,
                                          osc_active, band_active)
         m = min(n - pos, frame_len - frame_pos)
         _render(out, pos, frame_pos, m, scal, rng, osc_z, osc_pow, osc_gain, band_state,
