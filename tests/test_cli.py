@@ -218,10 +218,26 @@ def test_the_installed_command_exits_2_with_one_line(tmp_path):
     assert proc.returncode == 0 and soundfile.info(out).samplerate == 48000
 
 
-def test_docs_parameter_table_is_generated_from_the_table():
-    doc = (ROOT / "docs" / "twang.md").read_text(encoding="utf-8")
+@pytest.mark.parametrize("model", ["twang", "farnell"])
+def test_docs_parameter_table_is_generated_from_the_table(model):
+    doc = (ROOT / "docs" / f"{model}.md").read_text(encoding="utf-8")
     inside = doc.split("<!-- parameters:begin -->\n", 1)[1].split("<!-- parameters:end -->", 1)[0]
-    assert inside == get_model("twang").table.to_markdown()
+    assert inside == get_model(model).table.to_markdown()
+
+
+def test_farnell_through_the_cli(tmp_path):
+    out = tmp_path / "anchor.wav"
+    assert run("render", "farnell", "--preset", "anchor", "--duration", "0.5", "-o", str(out)).exit_code == 0
+    assert soundfile.info(out).frames == 24000
+    data = json.loads(run("describe", "farnell", "--set", "frequency_hz=300", "--json").stdout)
+    assert data["parameters"]["frequency_hz"] == 300.0
+    assert {m["group"] for m in data["modes"]} == {"clamped", "free-bar"}
+    assert [p["name"] for p in json.loads(run("params", "farnell", "--json").stdout)] == \
+        ["frequency_hz", "vibrato_depth_hz", "anchor", "level_db"]
+    listed = run("presets", "farnell").stdout
+    assert "anchor" in listed and "patch-default" in listed
+    assert_one_line_error(run("render", "farnell", "--set", "frequency_hz=900", "-o", str(tmp_path / "x.wav")),
+                          "frequency_hz", "20 to 800 Hz")
 
 
 # -- failures at write time, formats, extremes --------------------------------------------

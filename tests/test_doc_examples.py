@@ -13,6 +13,7 @@ MODULES = [
     "barsynth.physics.damping",
     "barsynth.physics.materials",
     "barsynth.models.twang",
+    "barsynth.models.farnell",
     "barsynth.analysis.partials",
     "barsynth.analysis.plots",
     "barsynth.parameters",

@@ -73,6 +73,7 @@ class Model(Protocol):
 # name -> "module:attribute"; imported on first use so `import barsynth` stays fast.
 _MODEL_PATHS: dict[str, str] = {
     "twang": "barsynth.models.twang:MODEL",
+    "farnell": "barsynth.models.farnell:MODEL",
 }
 
 
