@@ -403,5 +403,43 @@ def presets(model_name: str | None) -> None:
             click.echo(f"{name:<8} {preset:<24} {info.get('description', '')}")
 
 
+@main.group()
+def listen() -> None:
+    """Listening tests (MUSHRA-style ratings and A/B): reports from a results file."""
+
+
+@listen.command("report")
+@click.argument("results", metavar="RESULTS.db", type=click.Path(path_type=Path))
+@click.option("--csv", "csv_dir", type=click.Path(file_okay=False, path_type=Path), metavar="DIR",
+              help="Also write ratings.csv, ab.csv, summary.csv and pairwise.csv into DIR (created).")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), metavar="PNG",
+              help="Also draw a box plot of the ratings per clip.")
+@click.option("--holm", "holm_correction", is_flag=True, help="Holm-correct the pairwise p-values.")
+def listen_report(results, csv_dir, plot_path, holm_correction):
+    """Per-clip statistics, pairwise rank-sum marks and A/B identification rates."""
+    from .listening.report import box_plot, csv_tables, report_text, write_table
+    from .listening.store import open_existing
+
+    if plot_path is not None and plot_path.suffix.lower() != ".png":
+        raise ParameterError(f"parameter plot = {str(plot_path)!r} must end in .png")
+    with open_existing(results) as store:
+        text = report_text(store, holm_correction=holm_correction)
+        if csv_dir is not None:
+            try:
+                csv_dir.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise BarsynthError(f"could not create {csv_dir}: {exc.strerror or exc}") from None
+            tables = csv_tables(store, holm_correction=holm_correction)
+            _write_all([(csv_dir / name, lambda tmp, t=table: write_table(tmp, *t))
+                        for name, table in tables.items()])
+        if plot_path is not None:
+            ratings = store.ratings_by_clip()
+            if not ratings:
+                raise ParameterError("parameter plot: the results file holds no ratings to plot")
+            _check_writable_dir(plot_path, "plot")
+            _write_all([(plot_path, lambda tmp: box_plot(ratings, tmp))])
+    click.echo(text, nl=False)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -1,0 +1,133 @@
+"""Where listening-test answers live: one SQLite file (spec 4.4).
+
+Every answer is committed the moment it is given (autocommit, WAL journal, full
+sync), so a participant closing the tab or the server being killed loses nothing
+already answered. Participants are random ids; nothing personal is stored.
+Constraints in the schema itself refuse out-of-range ratings and a second answer
+to the same question, so nothing invalid can be stored by any route.
+"""
+
+from __future__ import annotations
+
+import secrets
+import sqlite3
+import time
+from pathlib import Path
+from typing import Any
+
+from ..errors import BarsynthError, ParameterError
+
+RATING_MAX = 9.99
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS participants (
+    id TEXT PRIMARY KEY,
+    created_at REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS mushra_ratings (
+    participant TEXT NOT NULL REFERENCES participants(id),
+    page INTEGER NOT NULL CHECK (page >= 0),
+    clip TEXT NOT NULL,
+    rating REAL NOT NULL CHECK (rating >= 0 AND rating <= 9.99),
+    shown_position INTEGER NOT NULL CHECK (shown_position >= 0),
+    play_count INTEGER NOT NULL CHECK (play_count >= 0),
+    comment TEXT NOT NULL DEFAULT '',
+    answered_at REAL NOT NULL,
+    PRIMARY KEY (participant, page, clip)
+);
+CREATE TABLE IF NOT EXISTS ab_answers (
+    participant TEXT NOT NULL REFERENCES participants(id),
+    pair TEXT NOT NULL,
+    model TEXT NOT NULL,
+    picked_real INTEGER NOT NULL CHECK (picked_real IN (0, 1)),
+    difficulty INTEGER NOT NULL CHECK (difficulty BETWEEN 1 AND 5),
+    answered_at REAL NOT NULL,
+    PRIMARY KEY (participant, pair)
+);
+"""
+
+
+class AnswerRefused(BarsynthError, ValueError):
+    """An answer that cannot be stored: unknown participant, out of range, or a repeat."""
+
+
+class ResultsStore:
+    """A listening test's answers in one SQLite file (created if missing)."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        try:
+            self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=FULL")
+            self._db.execute("PRAGMA foreign_keys=ON")
+            self._db.executescript(SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            raise BarsynthError(f"results file {self.path}: not a barsynth results database ({exc})") from None
+
+    def close(self) -> None:
+        self._db.close()
+
+    def __enter__(self) -> ResultsStore:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def new_participant(self) -> str:
+        """A fresh random participant id (128 bits, hex)."""
+        pid = secrets.token_hex(16)
+        self._db.execute("INSERT INTO participants VALUES (?, ?)", (pid, time.time()))
+        return pid
+
+    def _insert(self, sql: str, values: tuple) -> None:
+        try:
+            self._db.execute(sql, values)
+        except sqlite3.IntegrityError as exc:
+            text = str(exc)
+            if "UNIQUE" in text or "PRIMARY KEY" in text:
+                raise AnswerRefused("this question was already answered; answers cannot be changed") from None
+            if "FOREIGN KEY" in text:
+                raise AnswerRefused("unknown participant id") from None
+            raise AnswerRefused(f"answer refused: {text}") from None
+
+    def add_rating(self, participant: str, page: int, clip: str, rating: float, *,
+                   shown_position: int, play_count: int, comment: str = "") -> None:
+        """Store one MUSHRA rating (0 to 9.99) at once; a repeat is refused."""
+        if not (isinstance(rating, (int, float)) and 0.0 <= float(rating) <= RATING_MAX):
+            raise ParameterError(f"parameter rating = {rating!r} is out of range; allowed: 0 to {RATING_MAX} (rating)")
+        self._insert("INSERT INTO mushra_ratings VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                     (participant, page, clip, float(rating), shown_position, play_count, comment, time.time()))
+
+    def add_ab(self, participant: str, pair: str, model: str, picked_real: bool, difficulty: int) -> None:
+        """Store one A/B answer (which was real? difficulty 1 to 5) at once."""
+        if not (isinstance(difficulty, int) and not isinstance(difficulty, bool) and 1 <= difficulty <= 5):
+            raise ParameterError(f"parameter difficulty = {difficulty!r} is out of range; allowed: 1 to 5 (Likert)")
+        self._insert("INSERT INTO ab_answers VALUES (?, ?, ?, ?, ?, ?)",
+                     (participant, pair, model, int(bool(picked_real)), difficulty, time.time()))
+
+    def ratings_by_clip(self) -> dict[str, list[float]]:
+        """Every rating, grouped by clip (clips in order of first appearance)."""
+        out: dict[str, list[float]] = {}
+        for clip, rating in self._db.execute("SELECT clip, rating FROM mushra_ratings ORDER BY rowid"):
+            out.setdefault(clip, []).append(rating)
+        return out
+
+    def ab_trials(self) -> list[tuple[str, bool, int]]:
+        """Every A/B answer as ``(model, picked_real, difficulty)``."""
+        return [(m, bool(p), d) for m, p, d in
+                self._db.execute("SELECT model, picked_real, difficulty FROM ab_answers ORDER BY rowid")]
+
+    def rows(self, table: str) -> tuple[list[str], list[tuple]]:
+        """Column names and rows of ``mushra_ratings`` or ``ab_answers`` (for CSV export)."""
+        if table not in ("mushra_ratings", "ab_answers"):
+            raise ParameterError(f"parameter table = {table!r} is not allowed; allowed: mushra_ratings, ab_answers")
+        cursor = self._db.execute(f"SELECT * FROM {table} ORDER BY rowid")  # noqa: S608 - name checked above
+        return [d[0] for d in cursor.description], cursor.fetchall()
+
+
+def open_existing(path: str | Path) -> ResultsStore:
+    """Open a results file that must already exist (for reports)."""
+    p = Path(path)
+    if not p.is_file():
+        raise BarsynthError(f"results file {p}: no such file")
+    return ResultsStore(p)
