@@ -1,4 +1,7 @@
-"""Listening tests (spec 4): statistics now; the test server and report command come next."""
+"""Listening tests (spec 4): configs, the results store, statistics and reports.
+
+The web server that runs the tests in a browser is not built yet.
+"""
 
 from .stats import (
     ABSummary,
