@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ..dsp.noise import noise_state
 from ..parameters import BOOL, Parameter, ParameterTable
 from . import farnell_kernel as K
 from .base import Mode, resolve_parameters
@@ -33,7 +34,6 @@ from .rendering import (
     check_dtype,
     check_sample_rate,
     check_seed,
-    normalize_peak,
     render_voice,
 )
 
@@ -94,7 +94,7 @@ class FarnellVoice:
         self._state[K.S_TIME] = -1.0
         self._state[K.S_FREQ] = self._vector[K.P_FREQUENCY]
         self._state[K.S_DEPTH] = self._vector[K.P_DEPTH]
-        self._rng = np.random.SeedSequence(self._seed).generate_state(1, dtype=np.uint64) | np.uint64(1)
+        self._rng = noise_state(self._seed)
         self._bands = np.zeros((2, 6))
 
     def set_parameters(self, **values: Any) -> None:
@@ -161,11 +161,8 @@ class FarnellModel:
                normalize: bool = True, dtype: Any = np.float32) -> np.ndarray:
         """Render one strike offline (peak at -1 dBFS unless ``normalize`` is false,
         then exactly the voice's samples)."""
-        dtype = check_dtype(dtype)
-        samples = render_voice(self.voice(parameters, sample_rate=sample_rate, seed=seed), duration_s)
-        if normalize:
-            return normalize_peak(samples, dtype=dtype)
-        return samples.astype(dtype, copy=False)
+        return render_voice(self.voice(parameters, sample_rate=sample_rate, seed=seed), duration_s,
+                            normalize=normalize, dtype=dtype)
 
 
 MODEL = FarnellModel()

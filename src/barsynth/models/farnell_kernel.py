@@ -13,6 +13,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..dsp.noise import uniform_noise
+
 # -- constants read from the patch (spec 5) -----------------------------------------
 LFO_HZ = 5.0  # free-running vibrato sine
 CLAMP_FALL_S = 1.5  # clamped envelope c(t): 1 -> 0 linearly
@@ -106,11 +108,7 @@ def process(out, trace, params, sample_rate, state, rng, bands):
             phase -= (0.25 * f + GLIDE_DRIVE_HZ * glide) / sample_rate
             phase -= math.floor(phase)
             state[S_PHASE] = phase
-            # xorshift64* noise, uniform in [-1, 1) (Pd's noise~ is uniform too)
-            x_rng ^= x_rng >> np.uint64(12)
-            x_rng ^= x_rng << np.uint64(25)
-            x_rng ^= x_rng >> np.uint64(27)
-            u = float((x_rng * np.uint64(2685821657736338717)) >> np.uint64(11)) * (2.0 / 9007199254740992.0) - 1.0
+            x_rng, u = uniform_noise(x_rng)
             state[S_LOWPASS] += lp_k * (u * drive * drive * clamped - state[S_LOWPASS])
             centre = f * (1.0 + GLIDE_BANDS * glide)
             x_in = state[S_LOWPASS]

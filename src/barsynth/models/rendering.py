@@ -63,8 +63,12 @@ def check_dtype(dtype: Any) -> np.dtype:
     return kind
 
 
-def render_voice(voice: Any, duration_s: float) -> np.ndarray:
-    """Trigger ``voice`` once and return ``duration_s`` seconds of float64 samples."""
+def render_voice(voice: Any, duration_s: float, *, normalize: bool = True,
+                 dtype: Any = np.float32) -> np.ndarray:
+    """Trigger ``voice`` once and render ``duration_s`` seconds, as every model's
+    ``render`` does: peak-normalised to -1 dBFS, or exactly the voice's samples when
+    ``normalize`` is false; float32 or float64 (``dtype``)."""
+    dtype = check_dtype(dtype)
     duration = check_duration(duration_s)
     count = int(round(duration * voice.sample_rate))
     if count < 1:
@@ -73,7 +77,10 @@ def render_voice(voice: Any, duration_s: float) -> np.ndarray:
             f"least {1.0 / voice.sample_rate:.3g} s at {voice.sample_rate:g} Hz"
         )
     voice.trigger()
-    return voice.process(count, dtype=np.float64)
+    samples = voice.process(count, dtype=np.float64)
+    if normalize:
+        return normalize_peak(samples, dtype=dtype)
+    return samples.astype(dtype, copy=False)
 
 
 def normalize_peak(samples: np.ndarray, peak_dbfs: float = NORMALIZE_PEAK_DBFS,

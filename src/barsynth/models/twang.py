@@ -51,16 +51,16 @@ from typing import Any
 
 import numpy as np
 
+from ..dsp.noise import noise_state
+from ..errors import ParameterError
 from ..parameters import BOOL, CHOICE, Parameter, ParameterTable
 from . import twang_kernel as K
-from ..errors import ParameterError
 from .base import Mode, resolve_parameters
 from .rendering import (
     check_block_size,
     check_dtype,
     check_sample_rate,
     check_seed,
-    normalize_peak,
     render_voice,
 )
 
@@ -147,15 +147,6 @@ def _vector(parameters: Any) -> np.ndarray:
     return vec
 
 
-def _design(vector: np.ndarray, mode_mask: np.ndarray, sample_rate: float):
-    """(frequencies in Hz, gains, decay rates in 1/s) of the 18 modes at the trigger."""
-    freqs = np.empty(K.N_MODES)
-    gains = np.empty(K.N_MODES)
-    alphas = np.empty(K.N_MODES)
-    K.design(vector, _lambdas(), mode_mask, sample_rate, 0.0, 0.0, freqs, gains, alphas)
-    return freqs, gains, alphas
-
-
 def _mode_mask(mask: Any) -> np.ndarray:
     if mask is None:
         return np.ones(K.N_MODES)
@@ -174,7 +165,11 @@ def design_modes(parameters: Any = None, *, sample_rate: float = 48000.0) -> lis
     Modes silenced by Nyquist or by a zero group gain are left out.
     """
     params = resolve_parameters(MODEL, parameters)
-    freqs, gains, alphas = _design(_vector(params), np.ones(K.N_MODES), check_sample_rate(sample_rate))
+    freqs = np.empty(K.N_MODES)
+    gains = np.empty(K.N_MODES)
+    alphas = np.empty(K.N_MODES)
+    K.design(_vector(params), _lambdas(), np.ones(K.N_MODES), check_sample_rate(sample_rate),
+             0.0, 0.0, freqs, gains, alphas)
     modes = []
     for i in range(K.N_MODES):
         if gains[i] > 0.0:
@@ -235,8 +230,7 @@ class TwangVoice:
         self._target = _vector(self._params)
         self._current = self._target.copy()
         self._scal = np.zeros(K.N_SCALARS)
-        seed_seq = np.random.SeedSequence(self._seed)
-        self._rng = seed_seq.generate_state(1, dtype=np.uint64) | np.uint64(1)
+        self._rng = noise_state(self._seed)
         frame = self._frame_len
         self._osc_z = np.zeros((2, K.N_OSC))
         self._osc_pow = np.zeros((2, K.N_OSC, frame + 1))
@@ -321,7 +315,7 @@ class TwangModel:
         >>> samples.dtype, samples.shape
         (dtype('float32'), (48000,))
         """
-        dtype = check_dtype(dtype)
+        check_dtype(dtype)
         voice = self.voice(parameters, sample_rate=sample_rate, seed=seed)
         modes = design_modes(voice.parameters, sample_rate=voice.sample_rate)
         if not any(m.frequency_hz >= AUDIBLE_MIN_HZ for m in modes):
@@ -330,10 +324,7 @@ class TwangModel:
                 f"Nyquist ({voice.sample_rate / 2:g} Hz) or at zero gain; allowed: settings with "
                 "at least one audible mode (change length, thickness or material, or the sample_rate)"
             )
-        samples = render_voice(voice, duration_s)
-        if normalize:
-            return normalize_peak(samples, dtype=dtype)
-        return samples.astype(dtype, copy=False)
+        return render_voice(voice, duration_s, normalize=normalize, dtype=dtype)
 
 
 MODEL = TwangModel()

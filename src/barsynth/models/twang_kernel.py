@@ -28,6 +28,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..dsp.noise import uniform_noise
+
 # -- parameter vector layout (order of the twang parameter table) ----------------------
 P_YOUNGS = 0
 P_DENSITY = 1
@@ -410,11 +412,7 @@ def _render(out, start, k0, m, scal, rng, osc_z, osc_pow, osc_gain, band_state, 
     state = rng[0]
     diff = excitation[:m]
     for i in range(m):
-        state ^= state >> np.uint64(12)
-        state ^= state << np.uint64(25)
-        state ^= state >> np.uint64(27)
-        word = state * np.uint64(2685821657736338717)  # xorshift64*: uniform in [-1, 1)
-        u = float(word >> np.uint64(11)) * (2.0 / 9007199254740992.0) - 1.0
+        state, u = uniform_noise(state)
         lp += lpk * (u * phase * phase - lp)
         diff[i] = lp - x2
         x2 = x1

@@ -1,0 +1,1 @@
+"""Small DSP kernels shared by the models."""
