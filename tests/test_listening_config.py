@@ -74,8 +74,11 @@ def test_a_good_config_loads_files_and_renders_models(tmp_path):
     (('id = "anchor1"', 'id = "bad id!"'), "needs an id"),
     (('synthetic = "proposed1"', 'synthetic = "real1"'), "with itself"),
     (("sample_rate = 44100", "sample_rate = 100"), "sample_rate"),
+    (("sample_rate = 44100", "sample_rate = 384000"), "more than browsers play"),
     (("[test]", "[test\n"), "not valid TOML"),
     (('file = "rec/real1.wav"', 'file = "rec/real1.wav"\nseed = 3'), "only id and file"),
+    (('label = "proposed"', 'label = "proposed"\n[[ab]]\nreal = "real1"\nsynthetic = "proposed1"'),
+     "repeats the pair"),
 ])
 def test_bad_configs_fail_at_start_up_with_one_line(tmp_path, change, needle):
     old, new = change
@@ -96,3 +99,17 @@ def test_unreadable_audio_is_a_config_error(tmp_path):
 def test_missing_config(tmp_path):
     with pytest.raises(ConfigError, match="no such file"):
         load_test(tmp_path / "none.toml")
+
+
+@pytest.mark.parametrize("samples,rate,needle", [
+    (0.1 * np.ones(100), 4000, "sample rate 4000 Hz is not supported"),
+    (np.zeros(1000), 22050, "is silent"),
+    (np.full(1000, 1.5), 22050, "peaks at +3.5 dBFS"),
+    (0.1 * np.ones(8000 * 121), 8000, "lasts 121.0 s"),
+])
+def test_recordings_a_browser_cannot_play_faithfully_are_refused(tmp_path, samples, rate, needle):
+    cfg = write(tmp_path, GOOD)
+    soundfile.write(tmp_path / "rec" / "real1.wav", samples, rate, subtype="FLOAT")
+    with pytest.raises(ConfigError) as info:
+        load_test(cfg)
+    assert needle in str(info.value) and "real1.wav" in str(info.value)

@@ -405,7 +405,27 @@ def presets(model_name: str | None) -> None:
 
 @main.group()
 def listen() -> None:
-    """Listening tests (MUSHRA-style ratings and A/B): reports from a results file."""
+    """Listening tests (MUSHRA-style ratings and A/B): run one in the browser, report on it."""
+
+
+@listen.command("serve")
+@click.argument("config", metavar="TEST.toml", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--results", "results", type=click.Path(dir_okay=False, path_type=Path), metavar="RESULTS.db",
+              help="SQLite file for the answers (created if missing; default: TEST-results.db beside TEST.toml).")
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Address to listen on; 0.0.0.0 lets other machines take the test.")
+@click.option("--port", default=8000, show_default=True, type=int, help="TCP port (0 picks a free one).")
+def listen_serve(config, results, host, port):
+    """Run a listening test in the browser: MUSHRA pages and A/B pairs from TEST.toml.
+
+    Every clip is loaded or rendered and checked before the server starts; each
+    answer is written to RESULTS.db the moment it is submitted.
+    """
+    from .listening.server import serve
+
+    if results is None:
+        results = config.with_name(f"{config.stem}-results.db")
+    serve(config, results, host=host, port=port, echo=click.echo)
 
 
 @listen.command("report")

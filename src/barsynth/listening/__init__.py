@@ -1,6 +1,9 @@
-"""Listening tests (spec 4): configs, the results store, statistics and reports.
+"""Listening tests (spec 4): configs, sessions, the web server, the results store,
+statistics and reports.
 
-The web server that runs the tests in a browser is not built yet.
+``barsynth listen serve`` (:mod:`barsynth.listening.server`) runs a test in the browser;
+``barsynth listen report`` summarises its results file. The server module imports
+FastAPI and uvicorn, so it is loaded only when a test is served.
 """
 
 from .stats import (

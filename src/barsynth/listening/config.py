@@ -41,6 +41,9 @@ import numpy as np
 
 from ..errors import BarsynthError
 
+MIN_CLIP_RATE_HZ = 8000     # what every browser plays
+MAX_CLIP_RATE_HZ = 192000
+MAX_CLIP_S = 120.0          # a listening-test clip, not an album
 _ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 _TOP_KEYS = {"test", "clips", "mushra", "ab"}
 _TEST_KEYS = {"title", "sample_rate"}
@@ -108,6 +111,9 @@ def load_test(path: str | Path) -> ListeningTest:
         rate = check_sample_rate(head.get("sample_rate", 48000))
     except BarsynthError as exc:
         raise ConfigError(f"config {path}: [test] {exc}") from None
+    if rate > MAX_CLIP_RATE_HZ:
+        raise ConfigError(f"config {path}: [test] sample_rate = {rate:g} Hz is more than browsers play; "
+                          f"allowed: up to {MAX_CLIP_RATE_HZ} Hz")
 
     clips: dict[str, Clip] = {}
     entries = doc.get("clips", [])
@@ -140,6 +146,8 @@ def load_test(path: str | Path) -> ListeningTest:
         _known(path, f"[[ab]] #{number}", [real, synthetic], clips)
         if real == synthetic:
             raise ConfigError(f"config {path}: [[ab]] #{number} compares {real!r} with itself")
+        if any(p.real == real and p.synthetic == synthetic for p in pairs):
+            raise ConfigError(f"config {path}: [[ab]] #{number} repeats the pair {real!r} / {synthetic!r}")
         pairs.append(ABPair(real, synthetic, str(pair.get("label", synthetic))))
     if not pages and not pairs:
         raise ConfigError(f"config {path}: needs at least one [[mushra]] page or [[ab]] pair")
@@ -151,6 +159,25 @@ def _known(path: Path, where: str, ids: list, clips: dict) -> None:
         if clip_id not in clips:
             raise ConfigError(f"config {path}: {where} names unknown clip {clip_id!r}; "
                               f"known: {', '.join(clips)}")
+
+
+def _playable(path: Path, where: str, audio: Path, samples: np.ndarray, rate: float) -> None:
+    """Refuse a recording a browser cannot play faithfully (checked at start-up)."""
+    problem = None
+    if not MIN_CLIP_RATE_HZ <= rate <= MAX_CLIP_RATE_HZ:
+        problem = (f"sample rate {rate:g} Hz is not supported; allowed: {MIN_CLIP_RATE_HZ} to "
+                   f"{MAX_CLIP_RATE_HZ} Hz")
+    elif samples.size / rate > MAX_CLIP_S:
+        problem = f"lasts {samples.size / rate:.1f} s; allowed: up to {MAX_CLIP_S:g} s"
+    else:
+        peak = float(np.max(np.abs(samples)))
+        if peak == 0.0:
+            problem = "is silent"
+        elif peak > 1.0:
+            problem = (f"peaks at {20 * np.log10(peak):+.1f} dBFS, above full scale; allowed: peaks up to "
+                       "0 dBFS (it would clip when served)")
+    if problem:
+        raise ConfigError(f"config {path}: {where}: audio file {audio} {problem}")
 
 
 def _clip(path: Path, where: str, clip_id: str, entry: dict, rate: float) -> Clip:
@@ -167,6 +194,7 @@ def _clip(path: Path, where: str, clip_id: str, entry: dict, rate: float) -> Cli
             samples, file_rate = load_audio(audio)
         except BarsynthError as exc:
             raise ConfigError(f"config {path}: {where}: {exc}") from None
+        _playable(path, where, audio, samples, file_rate)
         return Clip(clip_id, samples.astype(np.float32), file_rate, f"file {audio}")
     from ..models import get_model
     from ..presets import preset_parameters

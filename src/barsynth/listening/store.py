@@ -9,9 +9,14 @@ to the same question, so nothing invalid can be stored by any route.
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import secrets
 import sqlite3
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +48,21 @@ CREATE TABLE IF NOT EXISTS ab_answers (
     answered_at REAL NOT NULL,
     PRIMARY KEY (participant, pair)
 );
+CREATE TABLE IF NOT EXISTS test_info (
+    key TEXT PRIMARY KEY,
+    value TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS sessions (
+    participant TEXT PRIMARY KEY REFERENCES participants(id),
+    token_sha256 TEXT NOT NULL,
+    plan TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS plays (
+    participant TEXT NOT NULL REFERENCES participants(id),
+    step INTEGER NOT NULL CHECK (step >= 0),
+    clip TEXT NOT NULL,
+    played_at REAL NOT NULL
+);
 """
 
 
@@ -55,6 +75,7 @@ class ResultsStore:
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
+        self._lock = threading.RLock()
         try:
             self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
             self._db.execute("PRAGMA journal_mode=WAL")
@@ -65,7 +86,8 @@ class ResultsStore:
             raise BarsynthError(f"results file {self.path}: not a barsynth results database ({exc})") from None
 
     def close(self) -> None:
-        self._db.close()
+        with self._lock:
+            self._db.close()
 
     def __enter__(self) -> ResultsStore:
         return self
@@ -73,15 +95,31 @@ class ResultsStore:
     def __exit__(self, *exc: Any) -> None:
         self.close()
 
+    def _run(self, sql: str, values: tuple = ()) -> list[tuple]:
+        with self._lock:
+            return self._db.execute(sql, values).fetchall()
+
+    @contextmanager
+    def _transaction(self) -> Iterator[None]:
+        """All or nothing: a page of ratings is stored whole or not at all."""
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                yield
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+            self._db.execute("COMMIT")
+
     def new_participant(self) -> str:
         """A fresh random participant id (128 bits, hex)."""
         pid = secrets.token_hex(16)
-        self._db.execute("INSERT INTO participants VALUES (?, ?)", (pid, time.time()))
+        self._run("INSERT INTO participants VALUES (?, ?)", (pid, time.time()))
         return pid
 
     def _insert(self, sql: str, values: tuple) -> None:
         try:
-            self._db.execute(sql, values)
+            self._run(sql, values)
         except sqlite3.IntegrityError as exc:
             text = str(exc)
             if "UNIQUE" in text or "PRIMARY KEY" in text:
@@ -93,10 +131,23 @@ class ResultsStore:
     def add_rating(self, participant: str, page: int, clip: str, rating: float, *,
                    shown_position: int, play_count: int, comment: str = "") -> None:
         """Store one MUSHRA rating (0 to 9.99) at once; a repeat is refused."""
-        if not (isinstance(rating, (int, float)) and 0.0 <= float(rating) <= RATING_MAX):
+        if not (isinstance(rating, (int, float)) and not isinstance(rating, bool)
+                and 0.0 <= float(rating) <= RATING_MAX):
             raise ParameterError(f"parameter rating = {rating!r} is out of range; allowed: 0 to {RATING_MAX} (rating)")
         self._insert("INSERT INTO mushra_ratings VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
                      (participant, page, clip, float(rating), shown_position, play_count, comment, time.time()))
+
+    def add_page(self, participant: str, page: int, answers: list[dict]) -> None:
+        """Store a whole MUSHRA page at once (every rating or none).
+
+        ``answers`` holds dicts with ``clip``, ``rating``, ``shown_position``,
+        ``play_count`` and ``comment``.
+        """
+        with self._transaction():
+            for answer in answers:
+                self.add_rating(participant, page, answer["clip"], answer["rating"],
+                                shown_position=answer["shown_position"], play_count=answer["play_count"],
+                                comment=answer.get("comment", ""))
 
     def add_ab(self, participant: str, pair: str, model: str, picked_real: bool, difficulty: int) -> None:
         """Store one A/B answer (which was real? difficulty 1 to 5) at once."""
@@ -105,24 +156,76 @@ class ResultsStore:
         self._insert("INSERT INTO ab_answers VALUES (?, ?, ?, ?, ?, ?)",
                      (participant, pair, model, int(bool(picked_real)), difficulty, time.time()))
 
+    # -- the web server's sessions -------------------------------------------------
+
+    def bind_test(self, fingerprint: str) -> None:
+        """Tie this file to one test; a file made for another test is refused."""
+        with self._transaction():
+            rows = self._run("SELECT value FROM test_info WHERE key = 'fingerprint'")
+            if not rows:
+                self._run("INSERT INTO test_info VALUES ('fingerprint', ?)", (fingerprint,))
+            elif rows[0][0] != fingerprint:
+                raise BarsynthError(f"results file {self.path} holds answers to another test (other clips, "
+                                    "pages or pairs); give a new results file")
+
+    def start_session(self, plan: str) -> tuple[str, str]:
+        """A new participant with its plan (JSON); returns ``(participant, secret token)``."""
+        token = secrets.token_urlsafe(24)
+        with self._transaction():
+            pid = self.new_participant()
+            self._run("INSERT INTO sessions VALUES (?, ?, ?)", (pid, _digest(token), plan))
+        return pid, token
+
+    def session_plan(self, participant: str, token: str) -> str | None:
+        """The plan of a session whose token matches, else None."""
+        rows = self._run("SELECT token_sha256, plan FROM sessions WHERE participant = ?", (participant,))
+        if rows and hmac.compare_digest(rows[0][0], _digest(token)):
+            return rows[0][1]
+        return None
+
+    def add_play(self, participant: str, step: int, clip: str) -> int:
+        """Record one play of a clip; returns how often it has been played in that step."""
+        with self._transaction():
+            self._run("INSERT INTO plays VALUES (?, ?, ?, ?)", (participant, step, clip, time.time()))
+            return self.play_counts(participant, step).get(clip, 0)
+
+    def play_counts(self, participant: str, step: int) -> dict[str, int]:
+        """How often each clip was played in one step of a session."""
+        return dict(self._run("SELECT clip, COUNT(*) FROM plays WHERE participant = ? AND step = ? "
+                              "GROUP BY clip", (participant, step)))
+
+    def answered_pages(self, participant: str) -> set[int]:
+        return {row[0] for row in self._run("SELECT DISTINCT page FROM mushra_ratings WHERE participant = ?",
+                                            (participant,))}
+
+    def answered_pairs(self, participant: str) -> set[str]:
+        return {row[0] for row in self._run("SELECT pair FROM ab_answers WHERE participant = ?", (participant,))}
+
+    # -- reading results ------------------------------------------------------------
+
     def ratings_by_clip(self) -> dict[str, list[float]]:
         """Every rating, grouped by clip (clips in order of first appearance)."""
         out: dict[str, list[float]] = {}
-        for clip, rating in self._db.execute("SELECT clip, rating FROM mushra_ratings ORDER BY rowid"):
+        for clip, rating in self._run("SELECT clip, rating FROM mushra_ratings ORDER BY rowid"):
             out.setdefault(clip, []).append(rating)
         return out
 
     def ab_trials(self) -> list[tuple[str, bool, int]]:
         """Every A/B answer as ``(model, picked_real, difficulty)``."""
         return [(m, bool(p), d) for m, p, d in
-                self._db.execute("SELECT model, picked_real, difficulty FROM ab_answers ORDER BY rowid")]
+                self._run("SELECT model, picked_real, difficulty FROM ab_answers ORDER BY rowid")]
 
     def rows(self, table: str) -> tuple[list[str], list[tuple]]:
         """Column names and rows of ``mushra_ratings`` or ``ab_answers`` (for CSV export)."""
         if table not in ("mushra_ratings", "ab_answers"):
             raise ParameterError(f"parameter table = {table!r} is not allowed; allowed: mushra_ratings, ab_answers")
-        cursor = self._db.execute(f"SELECT * FROM {table} ORDER BY rowid")  # noqa: S608 - name checked above
-        return [d[0] for d in cursor.description], cursor.fetchall()
+        with self._lock:
+            cursor = self._db.execute(f"SELECT * FROM {table} ORDER BY rowid")  # noqa: S608 - name checked above
+            return [d[0] for d in cursor.description], cursor.fetchall()
+
+
+def _digest(token: str) -> str:
+    return hashlib.sha256(token.encode()).hexdigest()
 
 
 def open_existing(path: str | Path) -> ResultsStore:

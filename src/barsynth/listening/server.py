@@ -1,0 +1,230 @@
+"""The listening-test web server (spec 4): MUSHRA pages and A/B pairs in the browser.
+
+``create_app`` builds the FastAPI app for a loaded test and a results store;
+``serve`` binds the socket (127.0.0.1 unless told otherwise) and runs it with
+uvicorn. A participant is a random id with a secret token in an HttpOnly cookie;
+every answer is checked by :mod:`barsynth.listening.session` and committed to
+SQLite before the browser hears back, so nothing answered is lost when a tab is
+closed or the server is killed. No address, name or browser detail is stored.
+
+HTTP API (JSON; errors are ``{"error": "one line"}`` with a 4xx status):
+
+- ``POST /api/session``: start (or, with ``{"new": true}``, restart) a session
+- ``GET /api/session``: the session's state (resume)
+- ``GET /api/audio/{handle}``: a clip as 16-bit WAV, by its opaque handle
+- ``POST /api/play``: ``{"handle": h}`` counts one play
+- ``POST /api/steps/{k}/answer``: ``{"ratings": [{"handle", "rating", "comment"}]}``
+  for a MUSHRA page, ``{"picked": "A"|"B", "difficulty": 1..5}`` for an A/B pair
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import socket
+import sys
+from collections.abc import Callable, Iterator
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import uvicorn
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse, Response
+
+from ..errors import BarsynthError
+from .config import ListeningTest, load_test
+from .session import Refused, Session, fingerprint, make_plan
+from .store import ResultsStore
+
+COOKIE = "barsynth_session"
+MAX_BODY_BYTES = 64 * 1024
+_STATIC = {"app.js": "text/javascript; charset=utf-8", "style.css": "text/css; charset=utf-8"}
+_SECURITY_HEADERS = {
+    "Content-Security-Policy": "default-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'",
+    "X-Content-Type-Options": "nosniff",
+    "Referrer-Policy": "no-referrer",
+}
+
+
+def clip_wav(samples: Any, sample_rate: float) -> bytes:
+    """A clip as a mono 16-bit PCM WAV file, which every browser plays."""
+    import soundfile
+
+    buffer = io.BytesIO()
+    soundfile.write(buffer, samples, int(round(sample_rate)), format="WAV", subtype="PCM_16")
+    return buffer.getvalue()
+
+
+def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None) -> FastAPI:
+    """The FastAPI app for one test; ``store`` is tied to it (another test's file is refused)."""
+    store.bind_test(fingerprint(test))
+    audio = {clip_id: clip_wav(clip.samples, clip.sample_rate) for clip_id, clip in test.clips.items()}
+    web = resources.files("barsynth.listening") / "web"
+    pages = {name: (web / name).read_bytes() for name in ("index.html", *_STATIC)}
+
+    app = FastAPI(title="barsynth listening test", docs_url=None, redoc_url=None, openapi_url=None)
+
+    @app.exception_handler(Refused)
+    async def refused(_request: Request, exc: Refused) -> JSONResponse:
+        return JSONResponse({"error": str(exc)}, status_code=exc.status, headers={"Cache-Control": "no-store"})
+
+    @app.exception_handler(RequestValidationError)
+    async def malformed(_request: Request, exc: RequestValidationError) -> JSONResponse:
+        first = (exc.errors() or [{}])[0]
+        where = ".".join(str(part) for part in first.get("loc", ("request",)))
+        return JSONResponse({"error": f"{where}: {first.get('msg', 'malformed request')}"}, status_code=422,
+                            headers={"Cache-Control": "no-store"})
+
+    @app.middleware("http")
+    async def headers(request: Request, call_next: Callable) -> Any:
+        length = request.headers.get("content-length", "0")
+        if not length.isdigit() or int(length) > MAX_BODY_BYTES:
+            return JSONResponse({"error": f"request body too large; allowed: up to {MAX_BODY_BYTES} bytes"},
+                                status_code=413)
+        response = await call_next(request)
+        response.headers.update(_SECURITY_HEADERS)
+        return response
+
+    def session_of(request: Request) -> Session:
+        participant, _, token = request.cookies.get(COOKIE, "").partition(".")
+        plan = store.session_plan(participant, token) if participant and token else None
+        if plan is None:
+            raise Refused(401, "no session; start the test from its first page")
+        return Session(test, store, participant, json.loads(plan))
+
+    async def body(request: Request) -> Any:
+        if request.headers.get("content-type", "").split(";")[0].strip() != "application/json":
+            raise Refused(415, "send the answer as application/json")
+        raw = await request.body()
+        if len(raw) > MAX_BODY_BYTES:
+            raise Refused(413, f"request body too large; allowed: up to {MAX_BODY_BYTES} bytes")
+        try:
+            return json.loads(raw or b"null", parse_constant=_no_constants)
+        except ValueError:
+            raise Refused(400, "the request body is not valid JSON") from None
+
+    def state(session: Session, status: int = 200) -> JSONResponse:
+        return JSONResponse(session.state(), status_code=status, headers={"Cache-Control": "no-store"})
+
+    @app.get("/")
+    async def index() -> Response:
+        return Response(pages["index.html"], media_type="text/html; charset=utf-8",
+                        headers={"Cache-Control": "no-store"})
+
+    @app.get("/static/{name}")
+    async def static(name: str) -> Response:
+        if name not in _STATIC:
+            raise Refused(404, f"no file {name[:40]!r}")
+        return Response(pages[name], media_type=_STATIC[name], headers={"Cache-Control": "no-cache"})
+
+    @app.get("/favicon.ico")
+    async def favicon() -> Response:
+        return Response(status_code=204)
+
+    @app.get("/api/health")
+    async def health() -> JSONResponse:
+        return JSONResponse({"ok": True, "title": test.title})
+
+    @app.get("/api/session")
+    async def get_session(request: Request) -> JSONResponse:
+        return state(session_of(request))
+
+    @app.post("/api/session")
+    async def post_session(request: Request) -> JSONResponse:
+        wish = await body(request)
+        if wish is None:
+            wish = {}
+        if not isinstance(wish, dict) or set(wish) - {"new"} or not isinstance(wish.get("new", False), bool):
+            raise Refused(422, 'a new session takes {} or {"new": true}')
+        if not wish.get("new", False):
+            try:
+                return state(session_of(request))
+            except Refused:
+                pass
+        participant, token = store.start_session(json.dumps(make_plan(test, rng)))
+        response = state(Session(test, store, participant, json.loads(store.session_plan(participant, token))),
+                         status=201)
+        response.set_cookie(COOKIE, f"{participant}.{token}", httponly=True, samesite="strict", path="/",
+                            max_age=180 * 24 * 3600)
+        return response
+
+    @app.get("/api/audio/{handle}")
+    async def get_audio(handle: str, request: Request) -> Response:
+        clip = session_of(request).clip_of(handle)
+        return Response(audio[clip], media_type="audio/wav", headers={"Cache-Control": "private, max-age=86400"})
+
+    @app.post("/api/play")
+    async def post_play(request: Request) -> JSONResponse:
+        session = session_of(request)
+        wish = await body(request)
+        if not isinstance(wish, dict) or set(wish) != {"handle"}:
+            raise Refused(422, 'a play is {"handle": "..."}')
+        return JSONResponse({"plays": session.play(wish["handle"])}, headers={"Cache-Control": "no-store"})
+
+    @app.post("/api/steps/{step}/answer")
+    async def post_answer(step: int, request: Request) -> JSONResponse:
+        session = session_of(request)
+        session.answer(step, await body(request))
+        return state(session)
+
+    return app
+
+
+def _no_constants(name: str) -> None:
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+class _QuietStop(uvicorn.Server):
+    """Ctrl-C or SIGTERM ends the test server normally (exit 0) once it has shut down,
+    instead of uvicorn re-raising the signal after its graceful shutdown."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Iterator[None]:
+        with super().capture_signals():
+            yield
+            getattr(self, "_captured_signals", []).clear()
+
+
+def listen_socket(host: str, port: int) -> socket.socket:
+    """A bound TCP socket (port 0 picks a free one); one clear error if it cannot be had."""
+    if not 0 <= port <= 65535:
+        raise BarsynthError(f"parameter port = {port} is out of range; allowed: 0 to 65535")
+    try:
+        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+        sock = socket.socket(family, kind, proto)
+    except (OSError, UnicodeError) as exc:
+        raise BarsynthError(f"cannot listen on {host}:{port}: {getattr(exc, 'strerror', None) or exc}") from None
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(address)
+        sock.listen(128)  # connections wait in the backlog until uvicorn takes them
+    except OSError as exc:
+        sock.close()
+        raise BarsynthError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    return sock
+
+
+def serve(config: str | Path, results: str | Path, *, host: str = "127.0.0.1", port: int = 8000,
+          echo: Callable[[str], None] = print) -> None:
+    """Load the test (every clip checked and rendered first), then serve it until stopped."""
+    test = load_test(config)
+    sock = listen_socket(host, port)
+    try:
+        with ResultsStore(results) as store:
+            app = create_app(test, store)
+            bound_host, bound_port = sock.getsockname()[:2]
+            shown = f"[{bound_host}]" if ":" in bound_host else bound_host
+            echo(f"barsynth listen: {test.title!r} at http://{shown}:{bound_port}/ ; answers go to {results} "
+                 "(Ctrl-C stops)")
+            if bound_host not in ("127.0.0.1", "::1"):
+                echo("barsynth listen: warning: listening beyond this machine; anyone who can reach it can "
+                     "take the test")
+            sys.stdout.flush()
+            server = _QuietStop(uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off"))
+            server.run(sockets=[sock])
+    finally:
+        sock.close()
+    echo(f"barsynth listen: stopped; the answers are in {results}")

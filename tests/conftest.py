@@ -1,0 +1,66 @@
+"""Shared fixtures: a small listening test on disk (real WAV files through soundfile)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import soundfile
+
+LISTENING_TEST = """
+[test]
+title = "Ruler realism"
+sample_rate = 22050
+
+[[clips]]
+id = "real1"
+file = "rec/real1.wav"
+
+[[clips]]
+id = "real2"
+file = "rec/real2.wav"
+
+[[clips]]
+id = "proposed1"
+file = "rec/proposed1.wav"
+
+[[clips]]
+id = "anchor1"
+model = "farnell"
+preset = "anchor"
+duration_s = 0.4
+
+[[mushra]]
+clips = ["real1", "proposed1", "anchor1"]
+
+[[mushra]]
+clips = ["real2", "proposed1"]
+
+[[ab]]
+real = "real1"
+synthetic = "proposed1"
+label = "proposed"
+
+[[ab]]
+real = "real2"
+synthetic = "anchor1"
+label = "anchor"
+"""
+
+# Each recording is a decaying tone of its own pitch, so a test can tell clips apart by ear... or by FFT.
+CLIP_TONES_HZ = {"real1": 440.0, "real2": 660.0, "proposed1": 550.0}
+
+
+def tone(frequency_hz: float, rate: int = 22050, seconds: float = 0.4) -> np.ndarray:
+    t = np.arange(int(rate * seconds)) / rate
+    return 0.5 * np.sin(2 * np.pi * frequency_hz * t) * np.exp(-4 * t)
+
+
+@pytest.fixture
+def listening_config(tmp_path):
+    """A listening test with 2 MUSHRA pages and 2 A/B pairs; returns the TOML path."""
+    (tmp_path / "rec").mkdir()
+    for clip, frequency in CLIP_TONES_HZ.items():
+        soundfile.write(tmp_path / "rec" / f"{clip}.wav", tone(frequency), 22050, subtype="PCM_16")
+    config = tmp_path / "test.toml"
+    config.write_text(LISTENING_TEST)
+    return config
