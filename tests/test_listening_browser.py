@@ -146,12 +146,13 @@ def until(page: Page, script: str, timeout_s: float = 10.0) -> None:
 def set_sliders(page: Page, fractions: list[float]) -> list[float]:
     """Move each slider with the mouse, as a participant would; returns the values shown."""
     items = page.locator("#mushra-clips li.clip")
-    assert items.count() == len(fractions)
+    assert items.count() >= len(fractions)  # the first len(fractions) sliders
     values = []
     for i, fraction in enumerate(fractions):
         slider = items.nth(i).locator("input.rating")
         box = slider.bounding_box()
-        page.mouse.click(box["x"] + fraction * box["width"], box["y"] + box["height"] / 2)
+        # A click at the very left end for 0: the value may not change, yet the rating is given.
+        page.mouse.click(box["x"] + max(fraction * box["width"], 1), box["y"] + box["height"] / 2)
         value = float(slider.input_value())
         assert value == pytest.approx(9.99 * fraction, abs=0.4)
         expect(items.nth(i).locator("output")).to_have_text(f"{value:.2f}")
@@ -170,6 +171,17 @@ def answer_pair(page: Page, progress: str, picked: str, difficulty: int) -> None
     page.locator(f"input[name=difficulty][value='{difficulty}']").check()
     expect(submit).to_be_enabled()
     submit.click()
+
+
+def first_page_played(browser, url: str):
+    """A new participant in a fresh browser, on page 1 with every sound played."""
+    context = browser.new_context(viewport={"width": 1000, "height": 900})
+    page = context.new_page()
+    page.goto(url)
+    page.click("#start")
+    expect(page.locator("#progress")).to_have_text("Page 1 of 2 · step 1 of 4")
+    play_every_sound(page, "mushra")
+    return context, page
 
 
 def stored_ratings(results: Path, participant: str) -> dict[tuple[int, str], tuple]:
@@ -250,12 +262,7 @@ def test_a_participant_completes_the_whole_test(browser, server, shots):
 
 def test_killing_the_server_mid_session_loses_nothing_and_the_session_resumes(browser, server, shots):
     url = server.start()
-    context = browser.new_context(viewport={"width": 1000, "height": 900})
-    page = context.new_page()
-    page.goto(url)
-    page.click("#start")
-    expect(page.locator("#progress")).to_have_text("Page 1 of 2 · step 1 of 4")
-    play_every_sound(page, "mushra")
+    context, page = first_page_played(browser, url)
     page1 = set_sliders(page, [0.9, 0.5, 0.1])
     page.click("#mushra-submit")
     expect(page.locator("#progress")).to_have_text("Page 2 of 2 · step 2 of 4")
@@ -294,4 +301,31 @@ def test_killing_the_server_mid_session_loses_nothing_and_the_session_resumes(br
         for shown, value in zip(step["clips"], values):
             assert ratings[(step["page"], shown["clip"])][0] == pytest.approx(value)
     assert db_rows(server.results, "SELECT COUNT(*) FROM ab_answers") == [(2,)]
+    context.close()
+
+
+def test_a_new_participant_at_the_same_computer_starts_afresh(browser, server, shots):
+    url = server.start()
+    context, page = first_page_played(browser, url)
+    set_sliders(page, [0.9, 0.5])
+    expect(page.locator("#mushra-submit")).to_be_disabled()  # Sound 3's slider was never set
+    expect(page.locator("#mushra-hint")).to_have_text("Set the slider of Sound 3.")
+    set_sliders(page, [0.9, 0.5, 0.0])  # 0 chosen on purpose is a rating
+    expect(page.locator("#mushra-submit")).to_be_enabled()
+    page.get_by_label("Comment on Sound 2").fill("first person's note")
+    first, _ = plan_of(server.results)
+
+    # The first participant walks away; the next one starts as new (after a confirmation).
+    page.reload()  # what they left is still there for them...
+    expect(page.locator("#mushra-clips input.rating").first).not_to_have_value("0")
+    page.once("dialog", lambda dialog: dialog.accept())
+    page.get_by_role("button", name="Start as a new participant").click()
+    expect(page.locator("#progress")).to_have_text("Page 1 of 2 · step 1 of 4")
+    expect(page.locator("#mushra .plays").first).to_have_text("not played yet")
+    sliders = page.locator("#mushra-clips input.rating")
+    assert [sliders.nth(i).input_value() for i in range(3)] == ["0", "0", "0"]  # ...but not for the next one
+    expect(page.get_by_label("Comment on Sound 2")).to_have_value("")
+    expect(page.locator("#mushra-hint")).to_contain_text("Play Sound 1, Sound 2, Sound 3 before submitting.")
+    participants = [row[0] for row in db_rows(server.results, "SELECT id FROM participants ORDER BY rowid")]
+    assert len(participants) == 2 and participants[0] == first
     context.close()

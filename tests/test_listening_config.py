@@ -54,7 +54,12 @@ def test_a_good_config_loads_files_and_renders_models(tmp_path):
     test = load_test(write(tmp_path, GOOD))
     assert test.title == "Ruler realism"
     assert set(test.clips) == {"real1", "proposed1", "anchor1"}
-    assert test.clips["real1"].sample_rate == 22050 and test.clips["real1"].samples.size == 22050
+    # The 22.05 kHz recording is served at the test's 44.1 kHz like every clip, its tone unmoved.
+    real = test.clips["real1"]
+    assert real.sample_rate == 44100 and real.samples.size == 44100 and "resampled from 22050 Hz" in real.source
+    spectrum = np.abs(np.fft.rfft(real.samples[2000:-2000] * np.hanning(real.samples.size - 4000), 1 << 20))
+    assert np.argmax(spectrum) * 44100 / (1 << 20) == pytest.approx(22050 / (2 * np.pi * 10), abs=0.1)
+    assert np.max(np.abs(real.samples)) == pytest.approx(0.1, rel=0.01)
     proposed = test.clips["proposed1"]
     assert proposed.sample_rate == 44100 and proposed.samples.size == 22050
     assert np.max(np.abs(proposed.samples)) == pytest.approx(10 ** (-1 / 20), rel=1e-6)

@@ -20,10 +20,15 @@ from fastapi.testclient import TestClient
 from barsynth.errors import BarsynthError
 from barsynth.listening.config import load_test
 from barsynth.listening.server import COOKIE, create_app
-from barsynth.listening.session import fingerprint, make_plan
+from barsynth.listening.session import make_plan
 from barsynth.listening.store import ResultsStore
 
-from conftest import CLIP_TONES_HZ
+from conftest import CLIP_TONES_HZ, tone
+
+
+def local_client(app) -> TestClient:
+    """A client that reaches the app as a browser on this machine does (Host: 127.0.0.1)."""
+    return TestClient(app, base_url="http://127.0.0.1")
 
 
 @pytest.fixture
@@ -33,7 +38,7 @@ def served(listening_config, tmp_path):
     db = tmp_path / "results.db"
     store = ResultsStore(db)
     app = create_app(test, store, rng=random.Random(1))
-    yield test, store, (lambda: TestClient(app)), db
+    yield test, store, (lambda: local_client(app)), db
     store.close()
 
 
@@ -119,8 +124,10 @@ def test_orders_and_sides_are_random_per_participant(listening_config, tmp_path)
     assert set(pair_orders) == {(0, 1), (1, 0)}
     handles = [c["handle"] for p in plans for s in p["steps"] for c in s["clips"]]
     assert len(set(handles)) == len(handles)
-    # Without an rng the system's randomness is used: two plans differ.
-    assert make_plan(test)["steps"] != make_plan(test)["steps"]
+    # Without an rng (as the server runs) the system's randomness is used: orders and sides vary.
+    drawn = {json.dumps([[c["clip"] for c in step["clips"]] for step in make_plan(test)["steps"]])
+             for _ in range(30)}
+    assert len(drawn) > 10
 
 
 def test_the_page_never_tells_which_clip_is_which(served):
@@ -151,7 +158,7 @@ def test_audio_is_the_clip_as_16_bit_wav(served):
             peak_hz = np.argmax(np.abs(np.fft.rfft(samples, 8 * samples.size))) * rate / (8 * samples.size)
             assert peak_hz == pytest.approx(CLIP_TONES_HZ[shown["clip"]], abs=2)
     assert client.get("/api/audio/not-a-handle").status_code == 404
-    assert TestClient(client.app).get(f"/api/audio/{state['step']['clips'][0]['handle']}").status_code == 401
+    assert local_client(client.app).get(f"/api/audio/{state['step']['clips'][0]['handle']}").status_code == 401
 
 
 def test_a_session_resumes_after_a_restart(served, listening_config):
@@ -166,7 +173,7 @@ def test_a_session_resumes_after_a_restart(served, listening_config):
 
     # A new server process: the config loaded again, the same results file.
     with ResultsStore(db) as again:
-        client2 = TestClient(create_app(load_test(listening_config), again))
+        client2 = local_client(create_app(load_test(listening_config), again))
         client2.cookies.set(COOKIE, cookie)
         after = client2.get("/api/session").json()
         assert after == before and after["steps_done"] == 1
@@ -183,10 +190,17 @@ def test_a_session_resumes_after_a_restart(served, listening_config):
 def test_a_results_file_of_another_test_is_refused(served, listening_config, tmp_path):
     test, store, _, db = served
     other = load_test(listening_config)
-    changed = type(other)(other.title, other.clips, other.pages[:1], other.ab_pairs)
-    assert fingerprint(changed) != fingerprint(test)
+    fewer_pages = type(other)(other.title, other.clips, other.pages[:1], other.ab_pairs)
     with ResultsStore(db) as again, pytest.raises(BarsynthError, match="another test"):
-        create_app(changed, again)
+        create_app(fewer_pages, again)
+    # The same ids and pages over other audio are another test too.
+    soundfile.write(listening_config.parent / "rec" / "proposed1.wav", 0.5 * tone(1234.0), 22050, subtype="PCM_16")
+    with ResultsStore(db) as again, pytest.raises(BarsynthError, match="another test"):
+        create_app(load_test(listening_config), again)
+    soundfile.write(listening_config.parent / "rec" / "proposed1.wav", tone(CLIP_TONES_HZ["proposed1"]), 22050,
+                    subtype="PCM_16")
+    with ResultsStore(db) as again:
+        create_app(load_test(listening_config), again)  # the very same test again is welcome
 
 
 # -- refusals: each a 4xx, and nothing stored ------------------------------------------------
@@ -221,6 +235,10 @@ BAD_PAGE_ANSWERS = [
                                               for r in page_answer(s, [1.0, 2.0, 3.0])["ratings"]]}, 422,
      "at most 2000"),
     ("not an object", lambda s: [1, 2, 3], 400, "JSON object"),
+    ("a huge whole number", lambda s: page_answer(s, [1.0, 10 ** 400, 2.0]), 422, "rating = 1000000000"),
+    ("a lone surrogate in a comment", lambda s: {"ratings": [{**r, "comment": "\ud800"}
+                                                            for r in page_answer(s, [1.0, 2.0, 3.0])["ratings"]]},
+     422, "parameter comment"),
     ("an A/B answer on a page", lambda s: {"picked": "A", "difficulty": 3}, 422, "unknown field"),
 ]
 
@@ -229,7 +247,8 @@ BAD_PAGE_ANSWERS = [
 def test_bad_page_answers_are_refused_and_nothing_is_stored(served, name, make, status, needle):
     client, state, db = _ready_page(served)
     before = stored(db)
-    response = client.post("/api/steps/0/answer", json=make(state))
+    response = client.post("/api/steps/0/answer", content=json.dumps(make(state)),  # ASCII: lone surrogates too
+                           headers={"Content-Type": "application/json"})
     assert response.status_code == status and needle in response.json()["error"], response.text
     assert "\n" not in response.json()["error"]
     assert stored(db) == before
@@ -245,6 +264,10 @@ def test_raw_requests_that_are_not_answers_are_refused(served):
     cases = [
         (client.post("/api/steps/0/answer", content=nan, headers={"Content-Type": "application/json"}), 400),
         (client.post("/api/steps/0/answer", content="{", headers={"Content-Type": "application/json"}), 400),
+        (client.post("/api/steps/0/answer", content="[" * 30000 + "]" * 30000,
+                     headers={"Content-Type": "application/json"}), 400),
+        (client.post("/api/steps/0/answer", content=(b"[" * 1000 for _ in range(100)),  # chunked, no length
+                     headers={"Content-Type": "application/json"}), 413),
         (client.post("/api/steps/0/answer", content=good, headers={"Content-Type": "text/plain"}), 415),
         (client.post("/api/steps/0/answer", data={"ratings": "1"}), 415),  # a form post from another site
         (client.post("/api/steps/0/answer", content=good + " " * 70000,
@@ -427,3 +450,50 @@ def test_a_good_config_gets_as_far_as_serving(listening_config, tmp_path):
     assert isinstance(result.exception, AssertionError) and "the server started" in str(result.exception)
     assert "'Ruler realism' at http://127.0.0.1:" in result.output
     assert (tmp_path / "test-results.db").exists()  # the default: beside the config
+
+
+def test_audio_answers_byte_ranges(served):
+    _, _, client_for, _ = served
+    client = client_for()
+    handle = start(client)["step"]["clips"][0]["handle"]
+    whole = client.get(f"/api/audio/{handle}")
+    size = len(whole.content)
+    assert whole.headers["accept-ranges"] == "bytes"
+    for wanted, first, last in [("bytes=0-1", 0, 1), ("bytes=100-", 100, size - 1), ("bytes=-10", size - 10, size - 1),
+                                (f"bytes=10-{size + 50}", 10, size - 1)]:
+        part = client.get(f"/api/audio/{handle}", headers={"Range": wanted})
+        assert part.status_code == 206 and part.content == whole.content[first:last + 1]
+        assert part.headers["content-range"] == f"bytes {first}-{last}/{size}"
+    for unsatisfiable in (f"bytes={size}-", "bytes=-0", "bytes=9-3"):
+        refused = client.get(f"/api/audio/{handle}", headers={"Range": unsatisfiable})
+        assert refused.status_code == 416 and refused.headers["content-range"] == f"bytes */{size}"
+    for ignored in ("bytes=0-1,5-6", "items=0-1", "bytes=" + "9" * 5000 + "-"):
+        full = client.get(f"/api/audio/{handle}", headers={"Range": ignored})
+        assert full.status_code == 200 and full.content == whole.content
+
+
+def test_requests_for_another_host_name_are_refused(served):
+    """A page elsewhere that rebinds its DNS name to 127.0.0.1 gets nothing (DNS rebinding)."""
+    _, _, client_for, db = served
+    app = client_for().app
+    before = stored(db)
+    for host in ("attacker.example", "testserver", "127.0.0.1.attacker.example"):
+        foreign = TestClient(app, base_url=f"http://{host}")
+        for response in (foreign.post("/api/session", json={}), foreign.get("/")):
+            assert response.status_code == 400 and "unknown Host" in response.json()["error"]
+    assert stored(db) == before
+    for host in ("localhost:8000", "127.0.0.1", "[::1]:8000"):
+        assert client_for().get("/", headers={"Host": host}).status_code == 200
+
+
+def test_a_busy_results_file_is_a_503_and_nothing_is_stored(served, monkeypatch):
+    client, state, db = _ready_page(served)
+    store = served[1]
+
+    def locked(*args, **kwargs):
+        raise sqlite3.OperationalError("database is locked")
+
+    monkeypatch.setattr(store, "add_page", locked)
+    response = client.post("/api/steps/0/answer", json=page_answer(state, [1.0, 2.0, 3.0]))
+    assert response.status_code == 503 and "nothing was stored" in response.json()["error"]
+    assert stored(db)["mushra_ratings"] == 0

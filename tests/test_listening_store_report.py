@@ -9,6 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from barsynth import ParameterError
+from barsynth.errors import BarsynthError
 from barsynth.cli import main
 from barsynth.listening import paper_like_ratings
 from barsynth.listening.store import AnswerRefused, ResultsStore
@@ -93,3 +94,41 @@ def test_report_bad_input(tmp_path):
     assert r.exit_code == 2 and "no ratings" in r.stderr
     assert not (tmp_path / "p.png").exists()
     assert "no ratings yet" in runner.invoke(main, ["listen", "report", str(empty)]).stdout
+
+
+class _CommitFailsOnce:
+    """A connection whose next COMMIT fails as if another process held the file."""
+
+    def __init__(self, db):
+        self.db, self.failures = db, 1
+
+    def execute(self, sql, *args):
+        if sql == "COMMIT" and self.failures:
+            self.failures -= 1
+            raise sqlite3.OperationalError("database is locked")
+        return self.db.execute(sql, *args)
+
+    def __getattr__(self, name):
+        return getattr(self.db, name)
+
+
+def test_a_failed_commit_leaves_no_open_transaction_for_later_answers(tmp_path):
+    db = tmp_path / "r.db"
+    with ResultsStore(db) as store:
+        pid = store.new_participant()
+        store._db = _CommitFailsOnce(store._db)
+        answer = {"clip": "a", "rating": 5.0, "shown_position": 0, "play_count": 1}
+        with pytest.raises(sqlite3.OperationalError):
+            store.add_page(pid, 0, [answer])
+        store.add_ab(pid, "real/proposed", "proposed", True, 4)  # must be committed, not swallowed
+        with sqlite3.connect(db) as other:
+            assert other.execute("SELECT COUNT(*) FROM ab_answers").fetchone() == (1,)
+            assert other.execute("SELECT COUNT(*) FROM mushra_ratings").fetchone() == (0,)
+        store.add_page(pid, 0, [answer])  # the page can be given again
+        with sqlite3.connect(db) as other:
+            assert other.execute("SELECT COUNT(*) FROM mushra_ratings").fetchone() == (1,)
+
+
+def test_a_results_file_in_a_missing_folder_is_named_as_such(tmp_path):
+    with pytest.raises(BarsynthError, match="folder .* does not exist"):
+        ResultsStore(tmp_path / "no" / "such" / "r.db")

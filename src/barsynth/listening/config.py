@@ -6,7 +6,7 @@ bad model parameter is one clear error at start-up, never a failure mid-test.
 
     [test]
     title = "How real is this ruler?"
-    sample_rate = 48000            # for rendered clips (Hz)
+    sample_rate = 48000            # every clip is rendered or resampled to this rate (Hz)
 
     [[clips]]
     id = "real1"
@@ -195,7 +195,16 @@ def _clip(path: Path, where: str, clip_id: str, entry: dict, rate: float) -> Cli
         except BarsynthError as exc:
             raise ConfigError(f"config {path}: {where}: {exc}") from None
         _playable(path, where, audio, samples, file_rate)
-        return Clip(clip_id, samples.astype(np.float32), file_rate, f"file {audio}")
+        source = f"file {audio}"
+        if file_rate != rate:  # every clip is served at one rate, so no header tells them apart
+            from math import gcd
+
+            from scipy.signal import resample_poly
+
+            common = gcd(int(file_rate), int(rate))
+            samples = resample_poly(samples, int(rate) // common, int(file_rate) // common)
+            source += f" (resampled from {file_rate:g} Hz)"
+        return Clip(clip_id, samples.astype(np.float32), rate, source)
     from ..models import get_model
     from ..presets import preset_parameters
 

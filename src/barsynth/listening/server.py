@@ -22,9 +22,11 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import re
 import socket
+import sqlite3
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -40,6 +42,8 @@ from .session import Refused, Session, fingerprint, make_plan
 from .store import ResultsStore
 
 COOKIE = "barsynth_session"
+LOCAL_HOSTS = ("127.0.0.1", "localhost", "[::1]")
+WILDCARD_HOSTS = ("", "0.0.0.0", "::")
 MAX_BODY_BYTES = 64 * 1024
 _STATIC = {"app.js": "text/javascript; charset=utf-8", "style.css": "text/css; charset=utf-8"}
 _SECURITY_HEADERS = {
@@ -58,10 +62,16 @@ def clip_wav(samples: Any, sample_rate: float) -> bytes:
     return buffer.getvalue()
 
 
-def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None) -> FastAPI:
-    """The FastAPI app for one test; ``store`` is tied to it (another test's file is refused)."""
-    store.bind_test(fingerprint(test))
+def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None,
+               allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
+    """The FastAPI app for one test; ``store`` is tied to it (another test's file is refused).
+
+    ``allowed_hosts``: the Host names the server answers to (so a web page elsewhere
+    cannot reach it by DNS rebinding); None answers to any (``--host 0.0.0.0``).
+    """
     audio = {clip_id: clip_wav(clip.samples, clip.sample_rate) for clip_id, clip in test.clips.items()}
+    store.bind_test(fingerprint(test, audio))
+    hosts = None if allowed_hosts is None else {h.lower() for h in allowed_hosts}
     web = resources.files("barsynth.listening") / "web"
     pages = {name: (web / name).read_bytes() for name in ("index.html", *_STATIC)}
 
@@ -78,8 +88,16 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None) -> 
         return JSONResponse({"error": f"{where}: {first.get('msg', 'malformed request')}"}, status_code=422,
                             headers={"Cache-Control": "no-store"})
 
+    @app.exception_handler(sqlite3.OperationalError)
+    async def busy(_request: Request, exc: sqlite3.OperationalError) -> JSONResponse:
+        return JSONResponse({"error": f"the results file could not be written ({exc}); nothing was stored, "
+                                      "try again"}, status_code=503, headers={"Cache-Control": "no-store"})
+
     @app.middleware("http")
     async def headers(request: Request, call_next: Callable) -> Any:
+        if hosts is not None and _host_name(request.headers.get("host", "")) not in hosts:
+            return JSONResponse({"error": "unknown Host; this test answers only at its own address"},
+                                status_code=400)
         length = request.headers.get("content-length", "0")
         if not length.isdigit() or int(length) > MAX_BODY_BYTES:
             return JSONResponse({"error": f"request body too large; allowed: up to {MAX_BODY_BYTES} bytes"},
@@ -98,12 +116,14 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None) -> 
     async def body(request: Request) -> Any:
         if request.headers.get("content-type", "").split(";")[0].strip() != "application/json":
             raise Refused(415, "send the answer as application/json")
-        raw = await request.body()
-        if len(raw) > MAX_BODY_BYTES:
-            raise Refused(413, f"request body too large; allowed: up to {MAX_BODY_BYTES} bytes")
+        raw = bytearray()
+        async for chunk in request.stream():  # a chunked body has no length to check first
+            raw += chunk
+            if len(raw) > MAX_BODY_BYTES:
+                raise Refused(413, f"request body too large; allowed: up to {MAX_BODY_BYTES} bytes")
         try:
-            return json.loads(raw or b"null", parse_constant=_no_constants)
-        except ValueError:
+            return json.loads(bytes(raw) or b"null", parse_constant=_no_constants)
+        except (ValueError, RecursionError):
             raise Refused(400, "the request body is not valid JSON") from None
 
     def state(session: Session, status: int = 200) -> JSONResponse:
@@ -154,7 +174,7 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None) -> 
     @app.get("/api/audio/{handle}")
     async def get_audio(handle: str, request: Request) -> Response:
         clip = session_of(request).clip_of(handle)
-        return Response(audio[clip], media_type="audio/wav", headers={"Cache-Control": "private, max-age=86400"})
+        return _ranged(audio[clip], request.headers.get("range"))
 
     @app.post("/api/play")
     async def post_play(request: Request) -> JSONResponse:
@@ -171,6 +191,34 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None) -> 
         return state(session)
 
     return app
+
+
+def _ranged(data: bytes, wanted: str | None) -> Response:
+    """A WAV answer honouring one byte range (Safari asks for ranges before it plays media)."""
+    headers = {"Accept-Ranges": "bytes", "Cache-Control": "private, max-age=86400"}
+    match = re.fullmatch(r"bytes=(\d{0,15})-(\d{0,15})", (wanted or "").strip())
+    if match is None or match.groups() == ("", ""):  # none, several or malformed: the whole file
+        return Response(data, media_type="audio/wav", headers=headers)
+    size = len(data)
+    first, last = match.groups()
+    if first == "":
+        start, end = max(0, size - int(last)), size - 1
+        if int(last) == 0:
+            start = size
+    else:
+        start, end = int(first), min(int(last) if last else size - 1, size - 1)
+    if start >= size or start > end:
+        return Response(status_code=416, headers={**headers, "Content-Range": f"bytes */{size}"})
+    return Response(data[start:end + 1], status_code=206, media_type="audio/wav",
+                    headers={**headers, "Content-Range": f"bytes {start}-{end}/{size}"})
+
+
+def _host_name(header: str) -> str:
+    """The host part of a Host header, lower case: 'localhost', '127.0.0.1', '[::1]'."""
+    header = header.strip().lower()
+    if header.startswith("["):
+        return header[:header.find("]") + 1]
+    return header.rsplit(":", 1)[0] if header.count(":") == 1 else header
 
 
 def _no_constants(name: str) -> None:
@@ -214,7 +262,8 @@ def serve(config: str | Path, results: str | Path, *, host: str = "127.0.0.1", p
     sock = listen_socket(host, port)
     try:
         with ResultsStore(results) as store:
-            app = create_app(test, store)
+            named = f"[{host}]" if ":" in host else host
+            app = create_app(test, store, allowed_hosts=None if host in WILDCARD_HOSTS else (*LOCAL_HOSTS, named))
             bound_host, bound_port = sock.getsockname()[:2]
             shown = f"[{bound_host}]" if ":" in bound_host else bound_host
             echo(f"barsynth listen: {test.title!r} at http://{shown}:{bound_port}/ ; answers go to {results} "

@@ -35,10 +35,11 @@ class Refused(BarsynthError):
         self.status = status
 
 
-def fingerprint(test: ListeningTest) -> str:
-    """What a results file is tied to: the clip ids, the pages and the pairs."""
+def fingerprint(test: ListeningTest, audio: dict[str, bytes]) -> str:
+    """What a results file is tied to: the clip ids, pages and pairs, and the audio served."""
     shape = {"clips": list(test.clips), "pages": [list(p) for p in test.pages],
-             "ab": [[p.real, p.synthetic, p.label] for p in test.ab_pairs]}
+             "ab": [[p.real, p.synthetic, p.label] for p in test.ab_pairs],
+             "audio": {clip: hashlib.sha256(audio[clip]).hexdigest() for clip in test.clips}}
     return hashlib.sha256(json.dumps(shape, sort_keys=True).encode()).hexdigest()
 
 
@@ -165,12 +166,11 @@ class Session:
                 raise Refused(422, f"handle {handle!r} is rated twice")
             seen.add(handle)
             rating = entry.get("rating")
-            if (isinstance(rating, bool) or not isinstance(rating, (int, float)) or not math.isfinite(rating)
-                    or not 0.0 <= rating <= RATING_MAX):
-                raise Refused(422, f"parameter rating = {rating!r} is out of range; allowed: 0 to {RATING_MAX} "
-                                   "(points)")
+            if not _number_within(rating, 0.0, RATING_MAX):
+                raise Refused(422, f"parameter rating = {_short(rating)} is out of range; allowed: 0 to "
+                                   f"{RATING_MAX} (points)")
             comment = entry.get("comment", "")
-            if not isinstance(comment, str) or len(comment) > MAX_COMMENT_CHARS:
+            if not isinstance(comment, str) or len(comment) > MAX_COMMENT_CHARS or not _encodable(comment):
                 raise Refused(422, f"parameter comment must be text of at most {MAX_COMMENT_CHARS} characters")
             position, clip = on_page[handle]
             answers.append({"clip": clip, "rating": float(rating), "shown_position": position,
@@ -182,16 +182,40 @@ class Session:
         _only_keys(payload, {"picked", "difficulty"})
         picked = payload.get("picked")
         if picked not in ("A", "B"):
-            raise Refused(422, f"parameter picked = {picked!r} is not allowed; allowed: 'A' or 'B'")
+            raise Refused(422, f"parameter picked = {_short(picked)} is not allowed; allowed: 'A' or 'B'")
         difficulty = payload.get("difficulty")
         if isinstance(difficulty, bool) or not isinstance(difficulty, int) or not 1 <= difficulty <= 5:
-            raise Refused(422, f"parameter difficulty = {difficulty!r} is out of range; allowed: 1 to 5 "
+            raise Refused(422, f"parameter difficulty = {_short(difficulty)} is out of range; allowed: 1 to 5 "
                                "(1 very difficult, 5 very easy)")
         self._unplayed(step, plays)
         pair = self.test.ab_pairs[step["pair"]]
         chosen = step["clips"][0 if picked == "A" else 1]["clip"]
         self.store.add_ab(self.participant, pair_key(self.test, step["pair"]), pair.label,
                           picked_real=chosen == pair.real, difficulty=difficulty)
+
+
+def _number_within(value: Any, low: float, high: float) -> bool:
+    """A real JSON number (not a bool, not a huge integer, not NaN) within [low, high]."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    if isinstance(value, int) and not -2**53 <= value <= 2**53:
+        return False
+    return math.isfinite(value) and low <= value <= high
+
+
+def _short(value: Any) -> str:
+    """A value as it goes into a one-line message (long ones cut)."""
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _encodable(text: str) -> bool:
+    """Text SQLite can store (JSON may carry lone surrogates, which UTF-8 cannot)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def _labels(step: dict[str, Any]) -> list[str]:

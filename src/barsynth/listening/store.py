@@ -76,6 +76,9 @@ class ResultsStore:
     def __init__(self, path: str | Path):
         self.path = Path(path)
         self._lock = threading.RLock()
+        self._depth = 0
+        if not self.path.parent.is_dir():
+            raise BarsynthError(f"results file {self.path}: folder {self.path.parent} does not exist")
         try:
             self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
             self._db.execute("PRAGMA journal_mode=WAL")
@@ -101,25 +104,44 @@ class ResultsStore:
 
     @contextmanager
     def _transaction(self) -> Iterator[None]:
-        """All or nothing: a page of ratings is stored whole or not at all."""
+        """All or nothing, committed before it returns (a page is stored whole or not at all).
+
+        Nested uses join the outer transaction. A failed COMMIT is rolled back, so no
+        later write can land in a transaction that will never be committed.
+        """
         with self._lock:
+            if self._depth:
+                self._depth += 1
+                try:
+                    yield
+                finally:
+                    self._depth -= 1
+                return
+            if self._db.in_transaction:  # left open by a failure elsewhere: never write into it
+                self._db.execute("ROLLBACK")
             self._db.execute("BEGIN IMMEDIATE")
+            self._depth = 1
             try:
                 yield
+                self._db.execute("COMMIT")
             except BaseException:
-                self._db.execute("ROLLBACK")
+                if self._db.in_transaction:
+                    self._db.execute("ROLLBACK")
                 raise
-            self._db.execute("COMMIT")
+            finally:
+                self._depth = 0
 
     def new_participant(self) -> str:
         """A fresh random participant id (128 bits, hex)."""
         pid = secrets.token_hex(16)
-        self._run("INSERT INTO participants VALUES (?, ?)", (pid, time.time()))
+        with self._transaction():
+            self._run("INSERT INTO participants VALUES (?, ?)", (pid, time.time()))
         return pid
 
     def _insert(self, sql: str, values: tuple) -> None:
         try:
-            self._run(sql, values)
+            with self._transaction():
+                self._run(sql, values)
         except sqlite3.IntegrityError as exc:
             text = str(exc)
             if "UNIQUE" in text or "PRIMARY KEY" in text:

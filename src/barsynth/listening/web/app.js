@@ -7,11 +7,13 @@
 const $ = (id) => document.getElementById(id);
 const SECTIONS = ["loading", "welcome", "mushra", "ab", "done"];
 const player = new Audio();
+const SLIDER_KEYS = new Set(["ArrowLeft", "ArrowRight", "ArrowUp", "ArrowDown", "Home", "End", "PageUp", "PageDown"]);
 let state = null;
 let busy = false;
 
 function show(name) {
   for (const s of SECTIONS) $(s).hidden = s !== name;
+  $("switch").hidden = name !== "mushra" && name !== "ab";
 }
 
 function setStatus(message) {
@@ -60,27 +62,42 @@ function saveDraft(draft) {
 
 // --- playing --------------------------------------------------------------------------
 
+let playing = 0;  // which click the player belongs to; older clicks' events are ignored
+
 function stopPlaying() {
+  playing += 1;
+  player.onplaying = player.onended = player.onerror = null;
   player.pause();
   for (const b of document.querySelectorAll("button.play.playing")) b.classList.remove("playing");
 }
 
-async function play(clip, button, counter) {
+// Play a sound. The play is counted once the browser really starts playing it,
+// so "played" on the page (and in the results) means heard, not just clicked.
+function play(clip, button, counter) {
   setStatus("");
   stopPlaying();
-  try {
-    const answer = await api("POST", "/api/play", { handle: clip.handle });
-    clip.plays = answer.plays;
-  } catch (err) {
-    setStatus(err.message);
-    return;
-  }
-  counter.textContent = playsText(clip.plays);
-  player.src = `/api/audio/${encodeURIComponent(clip.handle)}`;
+  const mine = playing;
+  const failed = (why) => {
+    if (mine !== playing) return;
+    button.classList.remove("playing");
+    setStatus(`This sound could not be played (${why}). Check the connection and the volume, then try again.`);
+  };
   button.classList.add("playing");
-  player.onended = () => button.classList.remove("playing");
-  player.play().catch(() => button.classList.remove("playing"));
-  updateButtons();
+  player.onplaying = async () => {
+    player.onplaying = null;
+    try {
+      const answer = await api("POST", "/api/play", { handle: clip.handle });
+      clip.plays = answer.plays;
+      counter.textContent = playsText(clip.plays);
+      updateButtons();
+    } catch (err) {
+      setStatus(err.message);
+    }
+  };
+  player.onended = () => { if (mine === playing) button.classList.remove("playing"); };
+  player.onerror = () => failed("it did not load");
+  player.src = `/api/audio/${encodeURIComponent(clip.handle)}`;
+  player.play().catch((err) => failed(err.name || "refused"));
 }
 
 // A Play button for one sound and the count of its plays beside it.
@@ -148,13 +165,20 @@ function renderMushra() {
     slider.max = String(state.rating_max);
     slider.step = "0.01";
     slider.value = saved.rating !== undefined ? String(saved.rating) : "0";
+    if (saved.touched) item.dataset.touched = "yes";
     slider.setAttribute("aria-label", `Rating for ${clip.label}`);
     const value = document.createElement("output");
     value.textContent = Number(slider.value).toFixed(2);
-    slider.addEventListener("input", () => {
+    // Set means touched: a click or key on the slider counts even where the value stays (0 at 0).
+    const touched = () => {
       value.textContent = Number(slider.value).toFixed(2);
+      item.dataset.touched = "yes";
       keepMushraDraft();
-    });
+      updateButtons();
+    };
+    slider.addEventListener("input", touched);
+    slider.addEventListener("pointerdown", touched);
+    slider.addEventListener("keydown", (event) => { if (SLIDER_KEYS.has(event.key)) touched(); });
     row.append(slider, value);
 
     const scale = document.createElement("div");
@@ -186,8 +210,21 @@ function mushraAnswers() {
 
 function keepMushraDraft() {
   const draft = {};
-  for (const a of mushraAnswers()) draft[a.handle] = { rating: a.rating, comment: a.comment };
+  for (const item of document.querySelectorAll("#mushra-clips li.clip")) {
+    draft[item.dataset.handle] = {
+      rating: Number(item.querySelector("input.rating").value),
+      comment: item.querySelector("textarea.comment").value,
+      touched: item.dataset.touched === "yes",
+    };
+  }
   saveDraft(draft);
+}
+
+// The sounds whose slider has not been set yet (a rating of 0 must be chosen, not left).
+function unrated() {
+  return [...document.querySelectorAll("#mushra-clips li.clip")]
+    .filter((item) => item.dataset.touched !== "yes")
+    .map((item) => item.querySelector(".clip-name").textContent);
 }
 
 function renderAB() {
@@ -235,8 +272,10 @@ function updateButtons() {
   const unplayed = state.step.clips.filter((c) => !c.plays).map((c) => c.label);
   const waiting = unplayed.length ? `Play ${unplayed.join(", ")} before submitting.` : "";
   if (state.step.kind === "mushra") {
-    $("mushra-submit").disabled = busy || unplayed.length > 0;
-    $("mushra-hint").textContent = waiting;
+    const unset = unrated();
+    $("mushra-submit").disabled = busy || unplayed.length > 0 || unset.length > 0;
+    $("mushra-hint").textContent = [waiting, unset.length ? `Set the slider of ${unset.join(", ")}.` : ""]
+      .filter(Boolean).join(" ");
   } else {
     const answer = abAnswer();
     $("ab-difficulty").disabled = !answer.picked;
@@ -281,10 +320,18 @@ async function refresh() {
   }
 }
 
+function forgetDrafts() {
+  try {
+    for (const key of Object.keys(localStorage)) if (key.startsWith("barsynth:")) localStorage.removeItem(key);
+  } catch (err) { /* private mode */ }
+}
+
 async function start(fresh) {
   setStatus("");
   try {
-    render(await api("POST", "/api/session", fresh ? { new: true } : {}));
+    const next = await api("POST", "/api/session", fresh ? { new: true } : {});
+    if (fresh) forgetDrafts();
+    render(next);
   } catch (err) {
     setStatus(err.message);
   }
@@ -293,6 +340,10 @@ async function start(fresh) {
 document.addEventListener("DOMContentLoaded", () => {
   $("start").addEventListener("click", () => start(false));
   $("next-participant").addEventListener("click", () => start(true));
+  $("new-participant").addEventListener("click", () => {
+    if (confirm("Start as a new participant? Everything answered so far stays saved under the previous id; " +
+                "what is on this page and not yet submitted is dropped.")) start(true);
+  });
   $("mushra-submit").addEventListener("click", () => submit({ ratings: mushraAnswers() }));
   $("ab-submit").addEventListener("click", () => submit(abAnswer()));
   for (const radio of document.querySelectorAll("input[name=picked]")) {
