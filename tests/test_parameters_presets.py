@@ -74,7 +74,8 @@ def test_json_and_markdown_come_from_the_same_rows():
     rows = TABLE.to_json()
     assert [r["name"] for r in rows] == list(TABLE.names)
     assert rows[0] == {"name": "rate_hz", "unit": "Hz", "min": 0.1, "max": 1000.0, "default": 10.0,
-                       "doc": "a log-scaled rate", "scale": "log", "kind": "float", "choices": None}
+                       "doc": "a log-scaled rate", "scale": "log", "kind": "float", "choices": None,
+                       "max_items": None}
     md = TABLE.to_markdown()
     assert md.count("\n") == len(TABLE) + 2
     assert "| `mode` | - | a / b | a |" in md
@@ -103,3 +104,24 @@ def test_preset_errors(tmp_path, monkeypatch):
     with pytest.raises(PresetError, match="available: broken, empty, good"):
         preset_module.load_preset("demo", "missing")
     assert preset_module.preset_names("nothing-here") == ()
+
+
+def test_a_floats_parameter_takes_lists_from_the_cli_toml_and_json():
+    from barsynth.parameters import FLOATS
+
+    ratios = Parameter("ratios", "", 0.5, 100.0, (1.0, 4.0), "mode ratios", kind=FLOATS, max_items=4)
+    assert ratios.validate("1, 3.99,9.2") == (1.0, 3.99, 9.2)
+    assert ratios.validate([1, 2.5]) == (1.0, 2.5)
+    assert ratios.validate("") == () and ratios.validate([]) == ()
+    for bad, needle in [("1,200", "value 2 = '200' is out of range"), ("1,x", "'x' is not a number"),
+                        ([1, 2, 3, 4, 5], "has 5 values"), (3.0, "is not a list"), ([1, True], "True"),
+                        ("1,nan", "value 2 = 'nan' is out of range")]:
+        with pytest.raises(ParameterError, match=needle) as info:
+            ratios.validate(bad)
+        assert "allowed: a list of up to 4 values, each 0.5 to 100 dimensionless" in str(info.value)
+    assert ratios.to_json()["default"] == [1.0, 4.0] and ratios.to_json()["max_items"] == 4
+    assert ratios.from_unit_interval(0.3) == (1.0, 4.0)
+    table = ParameterTable("lists", [ratios])
+    assert "| `ratios` | - | up to 4 values, each 0.5 to 100 | 1, 4 |" in table.to_markdown()
+    with pytest.raises(ValueError):
+        Parameter("bad", "", 1.0, 2.0, (3.0,), "out of range default", kind=FLOATS, max_items=2)

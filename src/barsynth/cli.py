@@ -197,7 +197,10 @@ def params(model_name: str, as_json: bool, markdown: bool) -> None:
         return
     click.echo(f"{model.name}: {model.summary}")
     for p in model.table:
-        default = p.default if not isinstance(p.default, float) else f"{p.default:g}"
+        if isinstance(p.default, tuple):
+            default = ",".join(f"{x:g}" for x in p.default) or "-"
+        else:
+            default = p.default if not isinstance(p.default, float) else f"{p.default:g}"
         click.echo(f"  {p.name:<24} {str(default):>10}  [{p.range_text()}]")
         click.echo(f"  {'':<24} {p.doc}")
 

@@ -22,6 +22,7 @@ FLOAT = "float"
 INT = "int"
 BOOL = "bool"
 CHOICE = "choice"
+FLOATS = "floats"  # a list of numbers, each within [minimum, maximum]
 
 _TRUE_WORDS = {"1", "true", "yes", "on"}
 _FALSE_WORDS = {"0", "false", "no", "off"}
@@ -32,9 +33,11 @@ class Parameter:
     """One control of a model.
 
     ``scale`` is ``"linear"`` or ``"log"``: how a slider (or a random draw)
-    spreads over the range. ``kind`` is ``float``, ``int``, ``bool`` or
-    ``choice``; a choice parameter lists its ``choices`` and keeps ``minimum`` and
-    ``maximum`` as ``None``.
+    spreads over the range. ``kind`` is ``float``, ``int``, ``bool``,
+    ``choice`` or ``floats``; a choice parameter lists its ``choices`` and keeps
+    ``minimum`` and ``maximum`` as ``None``; a floats parameter is a tuple of at
+    most ``max_items`` numbers, each within ``[minimum, maximum]`` (written
+    ``1,4,10`` on the command line, a list in TOML or JSON).
     """
 
     name: str
@@ -46,9 +49,10 @@ class Parameter:
     scale: str = "linear"
     kind: str = FLOAT
     choices: tuple[str, ...] = ()
+    max_items: int = 0
 
     def __post_init__(self) -> None:
-        if self.kind not in (FLOAT, INT, BOOL, CHOICE):
+        if self.kind not in (FLOAT, INT, BOOL, CHOICE, FLOATS):
             raise ValueError(f"{self.name}: unknown kind {self.kind!r}")
         if self.scale not in ("linear", "log"):
             raise ValueError(f"{self.name}: unknown scale {self.scale!r}")
@@ -58,6 +62,10 @@ class Parameter:
         elif self.kind == BOOL:
             if not isinstance(self.default, bool):
                 raise ValueError(f"{self.name}: bool parameter needs a bool default")
+        elif self.kind == FLOATS:
+            if not (isinstance(self.default, tuple) and self.max_items >= len(self.default)
+                    and all(self.minimum <= x <= self.maximum for x in self.default)):
+                raise ValueError(f"{self.name}: floats default must be a tuple within the range")
         else:
             assert self.minimum is not None and self.maximum is not None
             if not self.minimum <= self.default <= self.maximum:
@@ -77,6 +85,9 @@ class Parameter:
             return "one of " + ", ".join(self.choices)
         if self.kind == BOOL:
             return "true or false"
+        if self.kind == FLOATS:
+            return (f"a list of up to {self.max_items} values, each {_fmt(self.minimum)} to "
+                    f"{_fmt(self.maximum)} {self.unit_label}")
         return f"{_fmt(self.minimum)} to {_fmt(self.maximum)} {self.unit_label}"
 
     def to_json(self) -> dict[str, Any]:
@@ -86,11 +97,12 @@ class Parameter:
             "unit": self.unit,
             "min": self.minimum,
             "max": self.maximum,
-            "default": self.default,
+            "default": list(self.default) if self.kind == FLOATS else self.default,
             "doc": self.doc,
             "scale": self.scale,
             "kind": self.kind,
             "choices": list(self.choices) if self.kind == CHOICE else None,
+            "max_items": self.max_items if self.kind == FLOATS else None,
         }
 
     # -- validating -----------------------------------------------------------------
@@ -116,6 +128,8 @@ class Parameter:
             if text in _FALSE_WORDS:
                 return False
             raise self._error(value)
+        if self.kind == FLOATS:
+            return self._validate_floats(value)
         number = self._to_number(value)
         assert self.minimum is not None and self.maximum is not None
         if not (math.isfinite(number) and self.minimum <= number <= self.maximum):
@@ -128,6 +142,28 @@ class Parameter:
                 )
             return int(number)
         return float(number)
+
+    def _validate_floats(self, value: Any) -> tuple[float, ...]:
+        if isinstance(value, str):
+            items: list[Any] = [part for part in value.replace(" ", "").split(",") if part] \
+                if value.strip() else []
+        elif isinstance(value, (list, tuple)):
+            items = list(value)
+        else:
+            raise ParameterError(f"parameter {self.name} = {value!r} is not a list; allowed: "
+                                 f"{self.range_text()}")
+        if len(items) > self.max_items:
+            raise ParameterError(f"parameter {self.name} has {len(items)} values; allowed: "
+                                 f"{self.range_text()}")
+        out = []
+        for position, item in enumerate(items, start=1):
+            number = self._to_number(item)
+            assert self.minimum is not None and self.maximum is not None
+            if not (math.isfinite(number) and self.minimum <= number <= self.maximum):
+                raise ParameterError(f"parameter {self.name}: value {position} = {item!r} is out of range; "
+                                     f"allowed: {self.range_text()}")
+            out.append(number)
+        return tuple(out)
 
     def _to_number(self, value: Any) -> float:
         if isinstance(value, bool):
@@ -153,6 +189,7 @@ class Parameter:
     # -- sliders and random draws --------------------------------------------------
     def to_unit_interval(self, value: float) -> float:
         """Map a value to [0, 1] along the parameter's scale (for sliders)."""
+        assert self.kind != FLOATS, "a list has no slider"
         assert self.minimum is not None and self.maximum is not None
         if self.scale == "log":
             lo, hi = math.log(self.minimum), math.log(self.maximum)
@@ -166,6 +203,8 @@ class Parameter:
             return self.choices[min(len(self.choices) - 1, int(u * len(self.choices)))]
         if self.kind == BOOL:
             return u >= 0.5
+        if self.kind == FLOATS:
+            return self.default  # a list has no slider; a random draw keeps it
         assert self.minimum is not None and self.maximum is not None
         if self.scale == "log":
             lo, hi = math.log(self.minimum), math.log(self.maximum)
@@ -253,10 +292,15 @@ class ParameterTable:
                 span = " / ".join(p.choices)
             elif p.kind == BOOL:
                 span = "true / false"
+            elif p.kind == FLOATS:
+                span = f"up to {p.max_items} values, each {_fmt(p.minimum)} to {_fmt(p.maximum)}"
             else:
                 span = f"{_fmt(p.minimum)} to {_fmt(p.maximum)}"
-            default = str(p.default).lower() if p.kind == BOOL else (
-                _fmt(p.default) if isinstance(p.default, float) else str(p.default))
+            if p.kind == FLOATS:
+                default = ", ".join(_fmt(x) for x in p.default) or "(none)"
+            else:
+                default = str(p.default).lower() if p.kind == BOOL else (
+                    _fmt(p.default) if isinstance(p.default, float) else str(p.default))
             lines.append(f"| `{p.name}` | {p.unit or '-'} | {span} | {default} | {p.scale} | {p.doc} |")
         return "\n".join(lines) + "\n"
 
