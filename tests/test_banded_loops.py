@@ -32,11 +32,8 @@ def bank(designs, input_weights=None, output_weights=None):
 def impulse_response(design, seconds):
     coeffs, delays = bank([design])
     buffers, states, position = K.empty_bank(1, int(delays.max()))
-    n = int(seconds * design.sample_rate)
-    force = np.zeros(n)
-    force[0] = 1.0
-    out = np.empty(n)
-    K.process(out, force, coeffs, delays, buffers, states, position)
+    out = np.empty(int(seconds * design.sample_rate))
+    K.process(out, np.array([1.0]), 0.0, coeffs, delays, buffers, states, position)
     return out
 
 
@@ -95,16 +92,30 @@ def test_blocks_of_any_size_give_the_same_samples():
     force = np.zeros(20000)
     force[[0, 5000, 5001, 12000]] = 1.0, 0.5, -0.25, 2.0
     whole = np.empty(force.size)
-    K.process(whole, force, coeffs, delays, *K.empty_bank(4, int(delays.max())))
+    K.process(whole, force, 0.0, coeffs, delays, *K.empty_bank(4, int(delays.max())))
     buffers, states, position = K.empty_bank(4, int(delays.max()))
     pieces, start = [], 0
     while start < force.size:
         n = int(rng.integers(1, 700))
         out = np.empty(min(n, force.size - start))
-        K.process(out, force[start:start + out.size], coeffs, delays, buffers, states, position)
+        K.process(out, force[start:start + out.size], 0.0, coeffs, delays, buffers, states, position)
         pieces.append(out)
         start += out.size
     assert np.array_equal(np.concatenate(pieces), whole)
+
+
+@pytest.mark.parametrize("rate", [8000, 22050, 44100, 96000])
+def test_the_broadest_and_highest_loops_are_stable(rate):
+    """Q = 3 at a quarter of the sample rate: the band-pass widens to the mode."""
+    for frequency in (rate / 4, 0.9 * rate / 4, 0.7 * rate / 4):
+        t60 = 3 * math.log(1000) / (math.pi * frequency)
+        design = design_loop(frequency, t60, rate)
+        assert 0.0 < design.gain < 1.0
+        x = impulse_response(design, 0.05)
+        skip = 3 * math.ceil(rate / frequency)
+        partial = measure_partial(x[skip:skip + max(int(1.5 * t60 * rate), 64)], rate, frequency)
+        assert abs(1200 * math.log2(partial.frequency_hz / frequency)) < 1.0
+        assert partial.t60_s == pytest.approx(t60, rel=0.05)
 
 
 @settings(max_examples=40, deadline=None)

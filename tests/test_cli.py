@@ -15,7 +15,7 @@ import soundfile
 from click.testing import CliRunner
 
 from barsynth.cli import main
-from barsynth.models import get_model
+from barsynth.models import get_model, model_names
 from barsynth.physics import bar_frequencies, lambdas
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -218,7 +218,7 @@ def test_the_installed_command_exits_2_with_one_line(tmp_path):
     assert proc.returncode == 0 and soundfile.info(out).samplerate == 48000
 
 
-@pytest.mark.parametrize("model", ["twang", "farnell"])
+@pytest.mark.parametrize("model", model_names())
 def test_docs_parameter_table_is_generated_from_the_table(model):
     doc = (ROOT / "docs" / f"{model}.md").read_text(encoding="utf-8")
     inside = doc.split("<!-- parameters:begin -->\n", 1)[1].split("<!-- parameters:end -->", 1)[0]

@@ -14,6 +14,7 @@ MODULES = [
     "barsynth.physics.materials",
     "barsynth.models.twang",
     "barsynth.models.farnell",
+    "barsynth.models.banded",
     "barsynth.analysis.partials",
     "barsynth.analysis.plots",
     "barsynth.parameters",

@@ -64,6 +64,13 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
+def _shown(value: Any) -> str:
+    """A parameter value as people write it: 0.3, 6.9e+10, 1,4,10 (a list), - (an empty one)."""
+    if isinstance(value, tuple):
+        return ",".join(f"{x:g}" for x in value) or "-"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def _finite_or_none(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
@@ -197,11 +204,7 @@ def params(model_name: str, as_json: bool, markdown: bool) -> None:
         return
     click.echo(f"{model.name}: {model.summary}")
     for p in model.table:
-        if isinstance(p.default, tuple):
-            default = ",".join(f"{x:g}" for x in p.default) or "-"
-        else:
-            default = p.default if not isinstance(p.default, float) else f"{p.default:g}"
-        click.echo(f"  {p.name:<24} {str(default):>10}  [{p.range_text()}]")
+        click.echo(f"  {p.name:<24} {_shown(p.default):>10}  [{p.range_text()}]")
         click.echo(f"  {'':<24} {p.doc}")
 
 
@@ -227,7 +230,7 @@ def describe(model_name, preset, assignments, sample_rate, as_json):
         return
     click.echo(f"{model.name} at {rate:g} Hz")
     for name, value in model.table.as_dict(resolved).items():
-        click.echo(f"  {name:<24} {value:g}" if isinstance(value, float) else f"  {name:<24} {value}")
+        click.echo(f"  {name:<24} {_shown(value)}")
     click.echo(f"{'group':<18} {'frequency (Hz)':>15} {'gain':>8} {'T60 (s)':>9}")
     for m in found:
         click.echo(f"{m.group:<18} {m.frequency_hz:>15.3f} {m.gain:>8.4f} {m.t60_s:>9.3f}")

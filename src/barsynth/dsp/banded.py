@@ -14,8 +14,9 @@ at ``z0`` itself, not on the unit circle), its magnitude fixes ``g``. The residu
 the loop at ``z0`` then gives the input scale that makes a unit impulse ring the
 mode with unit amplitude, at any pitch and sample rate.
 
-The band-pass is a low-Q (``BAND_Q``) constant-peak section: it keeps the loop's
-other resonances (near 0 and ``2 f``) down by ``|H(2f)|`` per round trip.
+The band-pass is a low-Q (``BAND_Q``, or the mode's own Q when that is lower)
+constant-peak section: it keeps the loop's other resonances (near 0 and ``2 f``)
+down by ``|H(2f)|`` per round trip.
 """
 
 from __future__ import annotations
@@ -91,6 +92,8 @@ def design_loop(frequency_hz: float, t60_s: float, sample_rate: float, *, band_q
     w = 2.0 * math.pi * frequency_hz / sample_rate
     r = 10.0 ** (-3.0 / (t60_s * sample_rate))
     z0 = cmath.rect(r, w)
+    # A mode broader than the band-pass would need a loop gain above 1: widen the band to it.
+    band_q = min(band_q, math.pi * frequency_hz * t60_s / math.log(1000.0))
     b0, a1, a2 = _band_pass(w, band_q)
     h0, dh0 = _h(z0, b0, a1, a2)
     # Phase: arg H(z0) - M w + arg A(z0) = -2 pi. The all-pass covers 0.5..1.5 samples.

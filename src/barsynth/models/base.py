@@ -74,6 +74,7 @@ class Model(Protocol):
 _MODEL_PATHS: dict[str, str] = {
     "twang": "barsynth.models.twang:MODEL",
     "farnell": "barsynth.models.farnell:MODEL",
+    "banded": "barsynth.models.banded:MODEL",
 }
 
 

@@ -1,0 +1,55 @@
+"""Benchmark of the banded-waveguide model (run by hand, never as a timed test).
+
+    taskset -c 1 python benchmarks/bench_banded.py [--repeat N]
+
+Prints x real-time of 10 s at 44.1 kHz rendered offline for
+  * a struck 4-mode bar (preset uniform-bar),
+  * a struck 12-mode bowl (preset bowl),
+each the whole render() call (voice set-up, loop design, mallet pulse, kernel,
+normalisation), best and median of N.
+
+Targets on one core (issue 4): struck 4-mode bar >= 1000x, struck 12-mode bowl
+>= 350x (the C++ peer, STK's BandedWG, manages about 970x and 330x on this kind of
+machine). The bowed 4-mode bar (target >= 400x) comes with the bow.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from barsynth.models import get_model
+from barsynth.presets import preset_parameters
+
+SAMPLE_RATE = 44_100
+DURATION_S = 10.0
+CASES = (("struck 4-mode bar", "uniform-bar", 1000.0), ("struck 12-mode bowl", "bowl", 350.0))
+
+
+def measure(preset: str, repeat: int) -> tuple[float, float]:
+    model = get_model("banded")
+    parameters = preset_parameters("banded", preset)
+    model.render(parameters, duration_s=0.1, sample_rate=SAMPLE_RATE)  # compile / load the kernels
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        model.render(parameters, duration_s=DURATION_S, sample_rate=SAMPLE_RATE)
+        times.append(time.perf_counter() - start)
+    return DURATION_S / min(times), DURATION_S / float(np.median(times))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=15)
+    args = parser.parse_args()
+    for label, preset, target in CASES:
+        best, median = measure(preset, args.repeat)
+        verdict = "meets" if best >= target else "MISSES"
+        print(f"{label:<22} {best:7.0f}x real-time best, {median:7.0f}x median "
+              f"(target {target:.0f}x: {verdict})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,269 @@
+"""Banded-waveguide bars, bowls and glasses: struck or plucked (spec 3.1).
+
+Source: G. Essl and P. R. Cook, "Banded waveguides: towards physical modeling of
+bowed bar percussion instruments", Proc. ICMC 1999; the mallet after Chaigne and
+Doutaut, JASA 101 (1997).
+
+One loop per mode (:mod:`barsynth.dsp.banded`), each placed exactly on its mode's
+frequency and decay. The modes come either from physics (``tuning = physics``: a
+uniform free–free bar of the given material and size) or from a fundamental and a
+list of mode ratios and T60s (``tuning = ratios``: tuned bars, glasses, bowls, or a
+user's own object). Positions enter through mode shapes: the free–free bar's
+shapes for bars, ``cos(n 2 pi x)`` (n = 2, 3, ...) around a ring for glasses and
+bowls. The output is the object's velocity at the pick-up point (m/s), times
+``level_db``.
+
+Excitations: ``strike`` (a Hertzian mallet: mass, velocity, hardness as contact
+time), ``pluck`` (held at the strike point with a displacement, then released).
+A new strike or pluck adds to whatever is still ringing: nothing is cleared.
+Modes above a quarter of the sample rate are muted (a loop needs at least four
+samples of delay), never folded; modes below 20 Hz are left out.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..dsp import banded_kernel as K
+from ..dsp.banded import design_loop
+from ..dsp.mallet import hertz_stiffness, mallet_pulse, release_ramp
+from ..errors import ParameterError
+from ..parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
+from .base import Mode, resolve_parameters
+from .rendering import check_block_size, check_dtype, check_sample_rate, check_seed, render_voice
+
+MAX_MODES = 24
+MIN_Q = 3.0  # below this a mode is not a ringing loop (see dsp.banded)
+LOWEST_HZ = 20.0
+SOFTEST_CONTACT_S = 0.010  # mallet_hardness 0: a soft yarn mallet at 1 m/s
+HARDEST_CONTACT_S = 0.0002  # mallet_hardness 1: a hard plastic mallet at 1 m/s
+
+BANDED_TABLE = ParameterTable(
+    "banded",
+    [
+        Parameter("tuning", "", None, None, "physics",
+                  "where the modes come from: physics (a uniform free-free bar of the material and size "
+                  "below) or ratios (frequency_hz x mode_ratios, with mode_t60s_s)",
+                  kind=CHOICE, choices=("physics", "ratios")),
+        Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 69e9, "tuning = physics: Young's modulus E", scale="log"),
+        Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 2700.0, "tuning = physics: density rho", scale="log"),
+        Parameter("length_m", "m", 0.02, 3.0, 0.30, "tuning = physics: length of the bar", scale="log"),
+        Parameter("thickness_m", "m", 0.0003, 0.1, 0.01, "tuning = physics: thickness h (bending direction)",
+                  scale="log"),
+        Parameter("width_m", "m", 0.002, 0.5, 0.04, "tuning = physics: width (sets the mass)", scale="log"),
+        Parameter("mode_count", "", 1, MAX_MODES, 4, "tuning = physics: how many modes", kind=INT),
+        Parameter("frequency_hz", "Hz", 20.0, 5000.0, 220.0, "tuning = ratios: the fundamental", scale="log"),
+        Parameter("mode_ratios", "", 0.25, 200.0, (1.0, 4.0, 10.0),
+                  "tuning = ratios: each mode's frequency / frequency_hz", kind=FLOATS, max_items=MAX_MODES),
+        Parameter("mode_t60s_s", "s", 0.005, 120.0, (),
+                  "T60 of the first modes, in order (the rest follow q)", kind=FLOATS, max_items=MAX_MODES),
+        Parameter("q", "", MIN_Q, 10000.0, 300.0,
+                  "quality factor of every mode without its own T60: T60 = Q ln(1000) / (pi f)", scale="log"),
+        Parameter("shape", "", None, None, "bar",
+                  "tuning = ratios: mode shapes for positions: bar (free-free bending modes) or ring "
+                  "(cos(n 2 pi x), n = 2, 3, ... around a glass or bowl)", kind=CHOICE, choices=("bar", "ring")),
+        Parameter("mass_kg", "kg", 0.001, 100.0, 0.3, "tuning = ratios: the object's mass", scale="log"),
+        Parameter("excitation", "", None, None, "strike", "strike (a mallet) or pluck (a release)",
+                  kind=CHOICE, choices=("strike", "pluck")),
+        Parameter("strike_position", "", 0.0, 1.0, 0.1,
+                  "where it is struck or plucked: fraction of the length (bar) or of the circumference (ring)"),
+        Parameter("pickup_position", "", 0.0, 1.0, 0.0,
+                  "where its velocity is picked up, as strike_position"),
+        Parameter("mallet_hardness", "", 0.0, 1.0, 0.7,
+                  "0 soft (10 ms contact at 1 m/s) to 1 hard (0.2 ms): harder = more high modes"),
+        Parameter("mallet_velocity_m_s", "m/s", 0.05, 10.0, 1.0, "how fast the mallet arrives", scale="log"),
+        Parameter("mallet_mass_kg", "kg", 0.002, 0.5, 0.03, "mass of the mallet head", scale="log"),
+        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0,
+                  "how far the strike point is held out before a pluck's release", scale="log"),
+        Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log"),
+        Parameter("level_db", "dB", -60.0, 40.0, 0.0, "output gain re the pick-up velocity in m/s"),
+    ],
+)
+
+
+def _shapes(p: Any, count: int, position: float) -> np.ndarray:
+    """Each mode's shape at ``position`` (fraction), normalised to a mean square of 1."""
+    if p.tuning == "physics" or p.shape == "bar":
+        from ..physics import mode_shape
+
+        return np.array([float(mode_shape("free-free", n, position)) for n in range(1, count + 1)])
+    orders = np.arange(2, count + 2)
+    return math.sqrt(2.0) * np.cos(orders * 2.0 * math.pi * position)
+
+
+def mode_table(parameters: Any, sample_rate: float) -> tuple[np.ndarray, np.ndarray, float, list[str]]:
+    """Frequencies (Hz), T60s (s) and mass (kg) of the modes, and a note for each muted one."""
+    p = parameters
+    if p.tuning == "physics":
+        from ..physics import bar_frequencies
+
+        freqs = bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
+                                length_m=p.length_m, thickness_m=p.thickness_m, bc="free-free",
+                                count=p.mode_count)
+        mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
+    else:
+        if not p.mode_ratios:
+            raise ParameterError("parameter mode_ratios is empty; allowed: with tuning = ratios, a list of up to "
+                                 f"{MAX_MODES} ratios, each 0.25 to 200")
+        freqs = p.frequency_hz * np.array(p.mode_ratios)
+        mass = p.mass_kg
+    t60s = np.array([p.mode_t60s_s[k] if k < len(p.mode_t60s_s) else p.q * math.log(1000.0) / (math.pi * f)
+                     for k, f in enumerate(freqs)])
+    if len(p.mode_t60s_s) > len(freqs):
+        raise ParameterError(f"parameter mode_t60s_s has {len(p.mode_t60s_s)} values for {len(freqs)} modes; "
+                             "allowed: at most one T60 per mode (s)")
+    notes = []
+    for k, (f, t60) in enumerate(zip(freqs, t60s)):
+        shortest = MIN_Q * math.log(1000.0) / (math.pi * f)
+        if t60 < shortest:
+            raise ParameterError(f"parameter mode_t60s_s: value {k + 1} = {t60:g} is too short for a mode at "
+                                 f"{f:.1f} Hz; allowed: at least {shortest:.4g} s (Q >= {MIN_Q:g})")
+        if f > sample_rate / 4:
+            notes.append(f"mode {k + 1} at {f:.1f} Hz muted: above a quarter of the sample rate")
+        elif f < LOWEST_HZ:
+            notes.append(f"mode {k + 1} at {f:.2f} Hz left out: below {LOWEST_HZ:g} Hz")
+    return freqs, t60s, mass, notes
+
+
+def _playable(freqs: np.ndarray, sample_rate: float) -> np.ndarray:
+    return (freqs >= LOWEST_HZ) & (freqs <= sample_rate / 4)
+
+
+class BandedVoice:
+    """Streaming banded-waveguide voice: ``prepare`` / ``reset`` / ``trigger`` / ``process``.
+
+    Examples
+    --------
+    >>> voice = BandedVoice({"tuning": "ratios", "frequency_hz": 440}, sample_rate=48000)
+    >>> voice.trigger()
+    >>> block = voice.process(256)
+    >>> block.shape, bool(abs(block).max() > 0)
+    ((256,), True)
+    """
+
+    def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0):
+        self._params = resolve_parameters(MODEL, parameters)
+        check_seed(seed)  # the model is deterministic; the seed is accepted for the common interface
+        self.prepare(sample_rate)
+
+    @property
+    def parameters(self) -> Any:
+        return self._params
+
+    def prepare(self, sample_rate: float, max_block: int | None = None) -> None:
+        """Set the sample rate (Hz), design the loops and reset."""
+        self.sample_rate = check_sample_rate(sample_rate)
+        self._design()
+        self.reset()
+
+    def _design(self) -> None:
+        p, rate = self._params, self.sample_rate
+        freqs, t60s, mass, _ = mode_table(p, rate)
+        keep = _playable(freqs, rate)
+        if not keep.any():
+            raise ParameterError(f"no mode of this object lies between {LOWEST_HZ:g} Hz and a quarter of the "
+                                 f"sample rate ({rate / 4:g} Hz): its modes are at "
+                                 f"{', '.join(f'{f:.1f}' for f in freqs)} Hz")
+        index = np.flatnonzero(keep)
+        strike = _shapes(p, len(freqs), p.strike_position)[index]
+        pickup = _shapes(p, len(freqs), p.pickup_position)[index]
+        designs = [design_loop(float(freqs[k]), float(t60s[k]), rate) for k in index]
+        coeffs = np.zeros((len(designs), K.N_COEFFS))
+        for row, (d, s, o) in enumerate(zip(designs, strike, pickup)):
+            coeffs[row, [K.C_B0, K.C_A1, K.C_A2, K.C_ETA, K.C_GAIN]] = d.bp_b0, d.bp_a1, d.bp_a2, d.eta, d.gain
+            coeffs[row, K.C_IN] = d.input_scale * s / (rate * mass)  # a force sample is an impulse F / fs
+            coeffs[row, K.C_OUT] = o * 10.0 ** (p.level_db / 20.0)
+        self._coeffs = coeffs
+        self._delays = np.array([d.delay for d in designs], dtype=np.int64)
+        self._freqs, self._strike_shape, self._mass = freqs[index], strike, mass
+
+    def reset(self) -> None:
+        """Silence: every loop emptied, nothing pending."""
+        self._buffers, self._states, self._position = K.empty_bank(len(self._delays), int(self._delays.max()))
+        self._pending = np.zeros(0)
+        self._tail = 0.0
+
+    def set_parameters(self, **values: Any) -> None:
+        """Change parameters (validated); the loops are redesigned, what rings keeps ringing."""
+        params = resolve_parameters(MODEL, {**BANDED_TABLE.as_dict(self._params), **values})
+        old = self._params
+        self._params = params
+        try:
+            buffers, states, position = self._buffers, self._states, self._position
+            self._design()
+        except Exception:
+            self._params = old
+            raise
+        if self._coeffs.shape[0] == states.shape[0] and buffers.shape[1] >= int(self._delays.max()) + 2:
+            self._buffers, self._states, self._position = buffers, states, position
+        else:
+            self._buffers, self._states, self._position = K.empty_bank(len(self._delays), int(self._delays.max()))
+
+    def _add_force(self, change: np.ndarray, held: float) -> None:
+        """Add a force change to what is pending; ``held`` stays on after it (a release)."""
+        size = max(self._pending.size, change.size)
+        pending = np.full(size, self._tail)
+        pending[:self._pending.size] = self._pending
+        pending[:change.size] += change
+        pending[change.size:] += held
+        self._pending, self._tail = pending, self._tail + held
+
+    def trigger(self) -> None:
+        """Strike or pluck now, on top of whatever still rings."""
+        p = self._params
+        if p.excitation == "strike":
+            contact = SOFTEST_CONTACT_S * (HARDEST_CONTACT_S / SOFTEST_CONTACT_S) ** p.mallet_hardness
+            stiffness = hertz_stiffness(contact, p.mallet_mass_kg)
+            pulse = mallet_pulse(mass_kg=p.mallet_mass_kg, velocity_m_s=p.mallet_velocity_m_s,
+                                 stiffness=stiffness, sample_rate=self.sample_rate)
+            self._add_force(pulse, 0.0)
+        else:  # pluck: the force that holds the strike point out, then let go
+            omega = 2.0 * math.pi * self._freqs
+            compliance = float(np.sum(self._strike_shape ** 2 / (self._mass * omega ** 2)))  # m/N
+            force = p.pluck_displacement_mm * 1e-3 / compliance if compliance > 0 else 0.0
+            ramp = release_ramp(-force, p.release_time_ms * 1e-3, self.sample_rate)
+            self._add_force(ramp, -force)
+
+    def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
+        """The next ``num_samples`` samples: velocity at the pick-up (m/s) times the level."""
+        dtype = check_dtype(dtype)
+        n = check_block_size(num_samples)
+        out = np.empty(n)
+        K.process(out, self._pending, self._tail, self._coeffs, self._delays, self._buffers, self._states,
+                  self._position)
+        self._pending = self._pending[n:]
+        return out.astype(dtype, copy=False)
+
+
+class BandedModel:
+    """Banded-waveguide objects as a barsynth model (see the module docstring)."""
+
+    name = "banded"
+    summary = "banded waveguides (Essl & Cook 1999): struck or plucked bars, tuned bars, glasses and bowls"
+    table = BANDED_TABLE
+
+    def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:
+        """The modes that sound: frequency, gain (strike shape x pick-up shape) and T60."""
+        p = resolve_parameters(self, parameters)
+        rate = check_sample_rate(sample_rate)
+        freqs, t60s, _, _ = mode_table(p, rate)
+        strike = _shapes(p, len(freqs), p.strike_position)
+        pickup = _shapes(p, len(freqs), p.pickup_position)
+        keep = _playable(freqs, rate)
+        return [Mode("mode", float(freqs[k]), float(strike[k] * pickup[k]), float(t60s[k]))
+                for k in np.flatnonzero(keep)]
+
+    def voice(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0) -> BandedVoice:
+        return BandedVoice(parameters, sample_rate=sample_rate, seed=seed)
+
+    def render(self, parameters: Any = None, *, duration_s: float = 2.0, sample_rate: float = 48000.0,
+               seed: int | None = 0, normalize: bool = True, dtype: Any = np.float32) -> np.ndarray:
+        """One strike or pluck, offline (peak at -1 dBFS unless ``normalize`` is false)."""
+        return render_voice(self.voice(parameters, sample_rate=sample_rate, seed=seed), duration_s,
+                            normalize=normalize, dtype=dtype)
+
+
+MODEL = BandedModel()
