@@ -164,9 +164,9 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None,
                 return state(session_of(request))
             except Refused:
                 pass
-        participant, token = store.start_session(json.dumps(make_plan(test, rng)))
-        response = state(Session(test, store, participant, json.loads(store.session_plan(participant, token))),
-                         status=201)
+        plan = make_plan(test, rng)
+        participant, token = store.start_session(json.dumps(plan))
+        response = state(Session(test, store, participant, plan), status=201)
         response.set_cookie(COOKIE, f"{participant}.{token}", httponly=True, samesite="strict", path="/",
                             max_age=180 * 24 * 3600)
         return response

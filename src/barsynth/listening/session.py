@@ -86,12 +86,12 @@ class Session:
 
     def current(self) -> int | None:
         """The first step not yet answered, or None when the test is finished."""
-        return next((k for k, done in enumerate(self._done()) if not done), None)
+        return _first_open(self._done())
 
     def state(self) -> dict[str, Any]:
         """What the browser shows: progress and the current step, by handles only."""
         done = self._done()
-        current = next((k for k, d in enumerate(done) if not d), None)
+        current = _first_open(done)
         shown = None
         if current is not None:
             step = self.steps[current]
@@ -125,8 +125,9 @@ class Session:
         """Check and store the answer to one step (a whole MUSHRA page, or one A/B pair)."""
         if not isinstance(step_index, int) or not 0 <= step_index < len(self.steps):
             raise Refused(404, f"no step {step_index!r} in this session; steps are 0 to {len(self.steps) - 1}")
-        current = self.current()
-        if self._done()[step_index]:
+        done = self._done()
+        current = _first_open(done)
+        if done[step_index]:
             raise Refused(409, f"step {step_index} was already answered; answers cannot be changed")
         if step_index != current:
             raise Refused(409, f"step {step_index} is not the current one; answer step {current} first")
@@ -192,6 +193,11 @@ class Session:
         chosen = step["clips"][0 if picked == "A" else 1]["clip"]
         self.store.add_ab(self.participant, pair_key(self.test, step["pair"]), pair.label,
                           picked_real=chosen == pair.real, difficulty=difficulty)
+
+
+def _first_open(done: list[bool]) -> int | None:
+    """The first step not yet answered, or None."""
+    return next((k for k, answered in enumerate(done) if not answered), None)
 
 
 def _number_within(value: Any, low: float, high: float) -> bool:
