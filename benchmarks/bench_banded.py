@@ -4,13 +4,14 @@
 
 Prints x real-time of 10 s at 44.1 kHz rendered offline for
   * a struck 4-mode bar (preset uniform-bar),
+  * a bowed 4-mode bar (preset uniform-bar, excitation = bow, bowed for all 10 s),
   * a struck 12-mode bowl (preset bowl),
-each the whole render() call (voice set-up, loop design, mallet pulse, kernel,
-normalisation), best and median of N.
+each the whole render() call (voice set-up, loop design, mallet pulse or bow
+stroke, kernel, normalisation), best and median of N.
 
-Targets on one core (issue 4): struck 4-mode bar >= 1000x, struck 12-mode bowl
->= 350x (the C++ peer, STK's BandedWG, manages about 970x and 330x on this kind of
-machine). The bowed 4-mode bar (target >= 400x) comes with the bow.
+Targets on one core (issue 4): struck 4-mode bar >= 1000x, bowed 4-mode bar
+>= 400x, struck 12-mode bowl >= 350x (the C++ peer, STK's BandedWG, manages about
+970x, 345x and 330x on this kind of machine).
 """
 
 from __future__ import annotations
@@ -25,12 +26,15 @@ from barsynth.presets import preset_parameters
 
 SAMPLE_RATE = 44_100
 DURATION_S = 10.0
-CASES = (("struck 4-mode bar", "uniform-bar", 1000.0), ("struck 12-mode bowl", "bowl", 350.0))
+BOWED = {"excitation": "bow", "bow_duration_s": DURATION_S}
+CASES = (("struck 4-mode bar", "uniform-bar", {}, 1000.0),
+         ("bowed 4-mode bar", "uniform-bar", BOWED, 400.0),
+         ("struck 12-mode bowl", "bowl", {}, 350.0))
 
 
-def measure(preset: str, repeat: int) -> tuple[float, float]:
+def measure(preset: str, changes: dict, repeat: int) -> tuple[float, float]:
     model = get_model("banded")
-    parameters = preset_parameters("banded", preset)
+    parameters = {**preset_parameters("banded", preset), **changes}
     model.render(parameters, duration_s=0.1, sample_rate=SAMPLE_RATE)  # compile / load the kernels
     times = []
     for _ in range(repeat):
@@ -44,8 +48,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=15)
     args = parser.parse_args()
-    for label, preset, target in CASES:
-        best, median = measure(preset, args.repeat)
+    for label, preset, changes, target in CASES:
+        best, median = measure(preset, changes, args.repeat)
         verdict = "meets" if best >= target else "MISSES"
         print(f"{label:<22} {best:7.0f}x real-time best, {median:7.0f}x median "
               f"(target {target:.0f}x: {verdict})")

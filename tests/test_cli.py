@@ -339,3 +339,57 @@ def test_output_through_a_symlink_keeps_the_link_and_the_mode(tmp_path):
 
 def test_empty_preset_name_is_refused(tmp_path):
     assert_one_line_error(run("render", "twang", "-p", "", "-o", str(tmp_path / "x.wav")), "preset")
+
+
+# -- banded waveguides and the bow map ---------------------------------------------------
+@pytest.mark.parametrize("excitation", ["strike", "bow", "pluck"])
+def test_banded_renders_every_excitation_at_the_set_pitch(tmp_path, excitation):
+    out = tmp_path / f"{excitation}.wav"
+    r = run("render", "banded", "--preset", "marimba", "--set", "frequency_hz=330", "--set",
+            f"excitation={excitation}", "--duration", "1.5", "-o", str(out))
+    assert r.exit_code == 0, r.output
+    x, rate = soundfile.read(out)
+    assert rate == 48000 and 0.85 < np.max(np.abs(x)) <= 0.9  # peak-normalised to -1 dBFS
+    segment = x[int(0.3 * rate):int(1.3 * rate)]
+    spectrum = np.abs(np.fft.rfft(segment * np.hanning(segment.size)))
+    assert np.fft.rfftfreq(segment.size, 1 / rate)[np.argmax(spectrum)] == pytest.approx(330.0, abs=2.0)
+
+
+def test_banded_params_describe_and_presets():
+    names = [p["name"] for p in json.loads(run("params", "banded", "--json").output)]
+    assert {"excitation", "bow_velocity_m_s", "bow_force_n", "bow_position", "mode_ratios"} <= set(names)
+    d = json.loads(run("describe", "banded", "--preset", "xylophone", "--set", "frequency_hz=440", "--json").output)
+    assert [round(m["frequency_hz"]) for m in d["modes"]] == [440, 1320, 2640]
+    listed = run("presets", "banded").output
+    assert all(name in listed for name in ("uniform-bar", "marimba", "xylophone", "vibraphone", "glass", "bowl"))
+
+
+def test_bow_map_draws_the_region_and_prints_its_limits(tmp_path):
+    out = tmp_path / "map.png"
+    r = run("bow-map", "banded", "--preset", "uniform-bar", "--velocities", "12", "--forces", "3",
+            "--duration", "1.5", "--json", "-o", str(out))
+    assert r.exit_code == 0, r.output
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    found = json.loads(r.output)
+    limits = found["velocity_limits"]
+    assert len(limits) >= 2
+    assert limits[-1]["least_velocity_m_s"] > limits[0]["least_velocity_m_s"]
+    assert limits[-1]["greatest_velocity_m_s"] > limits[0]["greatest_velocity_m_s"]
+    text = run("bow-map", "banded", "--velocities", "6", "--forces", "2", "--duration", "1", "-o", str(out))
+    assert "least velocity (m/s)" in text.output and "wrote" in text.output
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["twang"], ["model 'twang' cannot be bowed"]),
+    (["banded", "--duration", "0.2"], ["duration_s = 0.2", "0.5 to 30 s"]),
+    (["banded", "--duration", "soon"], ["duration = 'soon'"]),
+    (["banded", "--forces", "1"], ["forces = 1", "2 to 200"]),
+    (["banded", "--set", "bow_force_n=50"], ["bow_force_n", "0.01 to 20 N"]),
+    (["nosuchmodel"], ["nosuchmodel"]),
+])
+def test_bow_map_bad_input_writes_nothing(tmp_path, args, needles):
+    out = tmp_path / "map.png"
+    r = run("bow-map", *args, "-o", str(out))
+    assert_one_line_error(r, *needles)
+    assert not out.exists()
+    assert_one_line_error(run("bow-map", "banded", "-o", str(tmp_path / "map.jpg")), "must end in .png")

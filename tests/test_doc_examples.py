@@ -15,6 +15,8 @@ MODULES = [
     "barsynth.models.twang",
     "barsynth.models.farnell",
     "barsynth.models.banded",
+    "barsynth.dsp.bow_stroke",
+    "barsynth.analysis.bowing",
     "barsynth.analysis.partials",
     "barsynth.analysis.plots",
     "barsynth.parameters",

@@ -84,6 +84,8 @@ def main() -> None:
     Examples:
       barsynth render twang --preset plastic-30cm -o twang.wav
       barsynth describe twang --set length_m=0.2 --json
+      barsynth render banded --preset vibraphone --set excitation=bow -o bowed.wav
+      barsynth bow-map banded --preset vibraphone -o bow-map.png
       barsynth analyze twang.wav --json
     """
 
@@ -346,6 +348,72 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
         jobs.append((plot_path, lambda tmp: plot_sound(samples, rate, tmp, title=title)))
     _write_all(jobs)
     click.echo(f"wrote {output} ({seconds:g} s at {rate:g} Hz)")
+
+
+@main.command("bow-map")
+@click.argument("model_name", metavar="MODEL")
+@_preset_option
+@_set_option
+@click.option("--velocities", "velocity_count", default=24, show_default=True, type=int, metavar="N",
+              help="How many bow velocities, spread logarithmically over bow_velocity_m_s's range.")
+@click.option("--forces", "force_count", default=16, show_default=True, type=int, metavar="N",
+              help="How many bow forces, spread logarithmically over bow_force_n's range.")
+@click.option("--duration", "duration", default="2.0", show_default=True, metavar="S",
+              help="How long each setting is bowed before its amplitude is read (0.5 to 30 s).")
+@click.option("--sample-rate", "sample_rate", default="44100", show_default=True, metavar="HZ",
+              help="Sample rate in Hz.")
+@click.option("--json", "as_json", is_flag=True, help="Print the whole map as JSON.")
+@click.option("-o", "--output", "output", required=True, metavar="PNG",
+              type=click.Path(dir_okay=False, path_type=Path), help="The picture to write (.png).")
+def bow_map(model_name, preset, assignments, velocity_count, force_count, duration, sample_rate, as_json, output):
+    """Where a bowed object sustains: bow velocity x bow force.
+
+    Bows the object at every setting of a grid, reads the steady velocity at the
+    bow point, and draws the region that sustains, with its least and greatest
+    bow velocity for each force.
+
+    \b
+    Example:
+      barsynth bow-map banded --preset vibraphone -o vibraphone-bow.png
+    """
+    import numpy as np
+
+    from .analysis.bowing import bow_map as measure_bow_map
+    from .analysis.bowing import plot_bow_map
+
+    model = _model(model_name)
+    resolved = _resolve(model, preset, assignments)
+    rate = _sample_rate(sample_rate)
+    try:
+        seconds = float(duration)
+    except ValueError:
+        raise ParameterError(f"parameter duration = {duration!r} is not a number; allowed: 0.5 to 30 s") from None
+    for name, count in (("velocities", velocity_count), ("forces", force_count)):
+        if not 2 <= count <= 200:
+            raise ParameterError(f"parameter {name} = {count} is out of range; allowed: 2 to 200 values")
+    if output.suffix.lower() != ".png":
+        raise ParameterError(f"parameter output = {str(output)!r} must end in .png")
+    _check_writable_dir(output, "output")
+    table = model.table
+    grid = {}
+    if "bow_velocity_m_s" in table.names and "bow_force_n" in table.names:
+        v, f = table["bow_velocity_m_s"], table["bow_force_n"]
+        grid = {"velocities_m_s": np.geomspace(v.minimum, v.maximum, velocity_count),
+                "forces_n": np.geomspace(f.minimum, f.maximum, force_count)}
+    found = measure_bow_map(model, resolved, duration_s=seconds, sample_rate=rate, **grid)
+    title = f"{model.name}{' ' + preset if preset else ''}: where bowing sustains (grey: it dies away)"
+    _write_all([(output, lambda tmp: plot_bow_map(found, tmp, title=title))])
+    if as_json:
+        _json_out(found.to_json())
+        return
+    limits = found.velocity_limits()
+    click.echo(f"{model.name}{' ' + preset if preset else ''}: sustains at {int(found.sustained.sum())} of "
+               f"{found.sustained.size} settings")
+    if limits:
+        click.echo(f"{'force (N)':>10} {'least velocity (m/s)':>21} {'greatest velocity (m/s)':>24}")
+        for force, low, high in limits:
+            click.echo(f"{force:>10.3g} {low:>21.3g} {high:>24.3g}")
+    click.echo(f"wrote {output}")
 
 
 @main.command()

@@ -14,8 +14,10 @@ bowls. The output is the object's velocity at the pick-up point (m/s), times
 ``level_db``.
 
 Excitations: ``strike`` (a Hertzian mallet: mass, velocity, hardness as contact
-time), ``pluck`` (held at the strike point with a displacement, then released).
-A new strike or pluck adds to whatever is still ringing: nothing is cleared.
+time), ``bow`` (a stroke of a bow: friction at the bow point from the bow table of
+:mod:`barsynth.dsp.friction`, fed back into every band each sample), ``pluck``
+(held at the strike point with a displacement, then released). A new strike,
+stroke or pluck adds to whatever is still ringing: nothing is cleared.
 Modes above a quarter of the sample rate are muted (a loop needs at least four
 samples of delay), never folded; modes below 20 Hz are left out.
 """
@@ -29,6 +31,7 @@ import numpy as np
 
 from ..dsp import banded_kernel as K
 from ..dsp.banded import design_loop
+from ..dsp.bow_stroke import FORCE, LIFT_DELAY_S, VELOCITY, BowControls
 from ..dsp.mallet import hertz_stiffness, mallet_pulse, release_ramp
 from ..errors import ParameterError
 from ..parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
@@ -40,6 +43,7 @@ MIN_Q = 3.0  # below this a mode is not a ringing loop (see dsp.banded)
 LOWEST_HZ = 20.0
 SOFTEST_CONTACT_S = 0.010  # mallet_hardness 0: a soft yarn mallet at 1 m/s
 HARDEST_CONTACT_S = 0.0002  # mallet_hardness 1: a hard plastic mallet at 1 m/s
+BOW_GLIDE_S = 0.020  # a new bow speed or force is reached over this time
 
 BANDED_TABLE = ParameterTable(
     "banded",
@@ -66,8 +70,9 @@ BANDED_TABLE = ParameterTable(
                   "tuning = ratios: mode shapes for positions: bar (free-free bending modes) or ring "
                   "(cos(n 2 pi x), n = 2, 3, ... around a glass or bowl)", kind=CHOICE, choices=("bar", "ring")),
         Parameter("mass_kg", "kg", 0.001, 100.0, 0.3, "tuning = ratios: the object's mass", scale="log"),
-        Parameter("excitation", "", None, None, "strike", "strike (a mallet) or pluck (a release)",
-                  kind=CHOICE, choices=("strike", "pluck")),
+        Parameter("excitation", "", None, None, "strike",
+                  "what a trigger does: strike (a mallet), bow (a bow stroke) or pluck (a release)",
+                  kind=CHOICE, choices=("strike", "bow", "pluck")),
         Parameter("strike_position", "", 0.0, 1.0, 0.1,
                   "where it is struck or plucked: fraction of the length (bar) or of the circumference (ring)"),
         Parameter("pickup_position", "", 0.0, 1.0, 0.0,
@@ -79,6 +84,17 @@ BANDED_TABLE = ParameterTable(
         Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0,
                   "how far the strike point is held out before a pluck's release", scale="log"),
         Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log"),
+        Parameter("bow_position", "", 0.0, 1.0, 0.0, "where the bow touches, as strike_position"),
+        Parameter("bow_velocity_m_s", "m/s", 0.01, 3.0, 0.3,
+                  "bow speed: the steady amplitude follows it (glides over 20 ms when changed)", scale="log"),
+        Parameter("bow_force_n", "N", 0.01, 20.0, 3.0,
+                  "how hard the bow presses: more force sustains at higher speeds (glides over 20 ms)",
+                  scale="log"),
+        Parameter("bow_duration_s", "s", 0.01, 600.0, 1.5,
+                  "how long a stroke moves the bow before it slows to rest (it then damps the bar for "
+                  "0.5 s and is lifted)", scale="log"),
+        Parameter("bow_ramp_ms", "ms", 1.0, 1000.0, 50.0,
+                  "how long the bow takes to press and speed up, and to slow to rest", scale="log"),
         Parameter("level_db", "dB", -60.0, 40.0, 0.0, "output gain re the pick-up velocity in m/s"),
     ],
 )
@@ -170,12 +186,15 @@ class BandedVoice:
         index = np.flatnonzero(keep)
         strike = _shapes(p, len(freqs), p.strike_position)[index]
         pickup = _shapes(p, len(freqs), p.pickup_position)[index]
+        bow = _shapes(p, len(freqs), p.bow_position)[index]
         designs = [design_loop(float(freqs[k]), float(t60s[k]), rate) for k in index]
         coeffs = np.zeros((len(designs), K.N_COEFFS))
-        for row, (d, s, o) in enumerate(zip(designs, strike, pickup)):
+        for row, (d, s, o, b) in enumerate(zip(designs, strike, pickup, bow)):
             coeffs[row, [K.C_B0, K.C_A1, K.C_A2, K.C_ETA, K.C_GAIN]] = d.bp_b0, d.bp_a1, d.bp_a2, d.eta, d.gain
             coeffs[row, K.C_IN] = d.input_scale * s / (rate * mass)  # a force sample is an impulse F / fs
             coeffs[row, K.C_OUT] = o * 10.0 ** (p.level_db / 20.0)
+            coeffs[row, K.C_BOW_IN] = d.input_scale * b / (rate * mass)
+            coeffs[row, K.C_BOW_AT] = b
         self._coeffs = coeffs
         self._delays = np.array([d.delay for d in designs], dtype=np.int64)
         self._freqs, self._strike_shape, self._mass = freqs[index], strike, mass
@@ -185,6 +204,7 @@ class BandedVoice:
         self._buffers, self._states, self._position = K.empty_bank(len(self._delays), int(self._delays.max()))
         self._pending = np.zeros(0)
         self._tail = 0.0
+        self._bow = BowControls(velocity_m_s=self._params.bow_velocity_m_s, force_n=self._params.bow_force_n)
 
     def set_parameters(self, **values: Any) -> None:
         """Change parameters (validated); the loops are redesigned, what rings keeps ringing."""
@@ -201,6 +221,11 @@ class BandedVoice:
             self._buffers, self._states, self._position = buffers, states, position
         else:
             self._buffers, self._states, self._position = K.empty_bank(len(self._delays), int(self._delays.max()))
+        glide = self._samples(BOW_GLIDE_S)
+        if params.bow_velocity_m_s != old.bow_velocity_m_s:
+            self._bow.glide(VELOCITY, params.bow_velocity_m_s, glide)
+        if params.bow_force_n != old.bow_force_n:
+            self._bow.glide(FORCE, params.bow_force_n, glide)
 
     def _add_force(self, change: np.ndarray, held: float) -> None:
         """Add a force change to what is pending; ``held`` stays on after it (a release)."""
@@ -211,10 +236,16 @@ class BandedVoice:
         pending[change.size:] += held
         self._pending, self._tail = pending, self._tail + held
 
+    def _samples(self, seconds: float) -> int:
+        return int(round(seconds * self.sample_rate))
+
     def trigger(self) -> None:
-        """Strike or pluck now, on top of whatever still rings."""
+        """Strike, start a bow stroke, or pluck now, on top of whatever still rings."""
         p = self._params
-        if p.excitation == "strike":
+        if p.excitation == "bow":
+            self._bow.start(duration=self._samples(p.bow_duration_s), ramp=self._samples(p.bow_ramp_ms * 1e-3),
+                            lift_delay=self._samples(LIFT_DELAY_S))
+        elif p.excitation == "strike":
             contact = SOFTEST_CONTACT_S * (HARDEST_CONTACT_S / SOFTEST_CONTACT_S) ** p.mallet_hardness
             stiffness = hertz_stiffness(contact, p.mallet_mass_kg)
             pulse = mallet_pulse(mass_kg=p.mallet_mass_kg, velocity_m_s=p.mallet_velocity_m_s,
@@ -227,22 +258,44 @@ class BandedVoice:
             ramp = release_ramp(-force, p.release_time_ms * 1e-3, self.sample_rate)
             self._add_force(ramp, -force)
 
+    def release(self) -> None:
+        """Stop a bow stroke now: the bow slows to rest, damps the bar, and is lifted.
+        (A strike or pluck simply rings on.)"""
+        self._bow.stop(ramp=self._samples(self._params.bow_ramp_ms * 1e-3), lift_delay=self._samples(LIFT_DELAY_S))
+
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples: velocity at the pick-up (m/s) times the level."""
         dtype = check_dtype(dtype)
         n = check_block_size(num_samples)
         out = np.empty(n)
-        K.process(out, self._pending, self._tail, self._coeffs, self._delays, self._buffers, self._states,
-                  self._position)
-        self._pending = self._pending[n:]
+        now = self._bow.now
+        bowed = min(n, max(0, self._bow.lifted_at - now))  # the bowed kernel runs exactly while the bow touches
+        if bowed:
+            self._run(out, 0, bowed, now)
+        if bowed < n:
+            self._run(out, bowed, n)
+        self._bow.now = now + n
         return out.astype(dtype, copy=False)
+
+    def _run(self, out: np.ndarray, start: int, stop: int, bow_index: int | None = None) -> None:
+        """Run samples ``start:stop`` of this block; with the bow if ``bow_index`` (the
+        absolute index of ``out[0]``) is given."""
+        pending = self._pending[start:] if start < self._pending.size else self._pending[:0]
+        if bow_index is None:
+            K.process(out[start:stop], pending, self._tail, self._coeffs, self._delays, self._buffers,
+                      self._states, self._position)
+        else:
+            K.process_bowed(out[start:stop], pending, self._tail, self._bow.lines, bow_index + start,
+                            self._coeffs, self._delays, self._buffers, self._states, self._position)
+        if stop == out.size:
+            self._pending = self._pending[stop:]
 
 
 class BandedModel:
     """Banded-waveguide objects as a barsynth model (see the module docstring)."""
 
     name = "banded"
-    summary = "banded waveguides (Essl & Cook 1999): struck or plucked bars, tuned bars, glasses and bowls"
+    summary = "banded waveguides (Essl & Cook 1999): struck, bowed or plucked bars, tuned bars, glasses, bowls"
     table = BANDED_TABLE
 
     def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:
@@ -261,7 +314,7 @@ class BandedModel:
 
     def render(self, parameters: Any = None, *, duration_s: float = 2.0, sample_rate: float = 48000.0,
                seed: int | None = 0, normalize: bool = True, dtype: Any = np.float32) -> np.ndarray:
-        """One strike or pluck, offline (peak at -1 dBFS unless ``normalize`` is false)."""
+        """One strike, bow stroke or pluck, offline (peak at -1 dBFS unless ``normalize`` is false)."""
         return render_voice(self.voice(parameters, sample_rate=sample_rate, seed=seed), duration_s,
                             normalize=normalize, dtype=dtype)
 
