@@ -79,23 +79,69 @@ def test_release_stops_the_bow_early():
     assert rms(after, 0.3, 0.5) < 1e-3 * rms(before, 0.7, 1.0)
 
 
-def test_a_new_stroke_on_a_sounding_bar_carries_on_without_a_jump():
-    """Re-triggering clears nothing: the sound is untouched up to the trigger and
-    continues smoothly after it (and the second stroke keeps the bar going)."""
+@pytest.mark.parametrize("phase,at_s", [("moving", 0.8), ("slowing", 1.025), ("resting", 1.3),
+                                         ("lifting", 1.575), ("lifted", 1.8)])
+def test_a_new_stroke_carries_on_from_the_bow_as_it_is_without_a_jump(phase, at_s):
+    """Re-triggering clears nothing: the sound is untouched up to the trigger and continues
+    smoothly after it, whatever the bow was doing (a 1 s stroke slows from 1.0 to 1.05 s,
+    rests until 1.55 s, is lifted by 1.6 s); the new stroke keeps the bar going."""
     def stroke(retrigger_at):
         voice = BandedVoice(bowed(bow_duration_s=1.0), sample_rate=RATE)
         voice.trigger()
         first = voice.process(retrigger_at, dtype=np.float64)
-        if retrigger_at < 2 * RATE:
+        if retrigger_at < 3 * RATE:
             voice.trigger()
-        return np.concatenate([first, voice.process(2 * RATE - retrigger_at, dtype=np.float64)])
-    once, twice = stroke(2 * RATE), stroke(int(0.8 * RATE))
-    at = int(0.8 * RATE)
+        return np.concatenate([first, voice.process(3 * RATE - retrigger_at, dtype=np.float64)])
+    at = int(at_s * RATE)
+    once, twice = stroke(3 * RATE), stroke(at)
     assert np.array_equal(once[:at], twice[:at])
     steps = np.abs(np.diff(twice))
-    assert steps[at - 5:at + 2000].max() <= 1.05 * steps[at - 2000:at - 5].max()
-    assert rms(twice, 1.5, 1.8) > 0.5 * rms(twice, 0.5, 0.8)  # still bowing, where `once` has stopped
-    assert rms(once, 1.5, 1.8) < 1e-3 * rms(once, 0.5, 0.8)
+    steady_step = steps[int(0.5 * RATE):int(0.9 * RATE)].max()
+    assert steps[at - 5:at + 200].max() <= 1.05 * steps[at - 2000:at - 5].max() + 0.01 * steady_step
+    assert rms(twice, at_s + 0.6, at_s + 0.9) > 0.5 * rms(twice, 0.5, 0.8)  # bowing again
+    assert rms(once, at_s + 0.6, at_s + 0.9) < 1e-3 * rms(once, 0.5, 0.8)
+
+
+def test_release_without_a_moving_bow_changes_nothing():
+    plain = BandedVoice(preset_parameters("banded", "marimba"), sample_rate=RATE)
+    released = BandedVoice(preset_parameters("banded", "marimba"), sample_rate=RATE)
+    for voice in (plain, released):
+        voice.trigger()  # a strike
+    released.release()
+    assert np.array_equal(plain.process(RATE, dtype=np.float64), released.process(RATE, dtype=np.float64))
+    # A bow being lifted is not held down again by a second release.
+    voice = BandedVoice(bowed(bow_duration_s=0.5), sample_rate=RATE)
+    voice.trigger()
+    voice.process(int(1.06 * RATE))
+    lift = voice._bow.lifted_at
+    voice.release()
+    assert voice._bow.lifted_at == lift
+
+
+def test_changing_the_modes_while_bowing_keeps_the_bar_sounding():
+    voice = BandedVoice(bowed(bow_duration_s=10.0), sample_rate=RATE)
+    voice.trigger()
+    pieces = [voice.process(RATE, dtype=np.float64)]
+    voice.set_parameters(mode_count=3)
+    pieces.append(voice.process(RATE, dtype=np.float64))
+    voice.set_parameters(mode_count=6)
+    pieces.append(voice.process(RATE, dtype=np.float64))
+    x = np.concatenate(pieces)
+    steps = np.abs(np.diff(x))
+    for at in (RATE, 2 * RATE):
+        assert steps[at - 5:at + 5].max() <= steps[at - 2000:at - 5].max()
+        assert rms(x, (at + 2000) / RATE, (at + 6000) / RATE) == pytest.approx(rms(x, 0.5, 0.9), rel=0.05)
+
+
+def test_a_refused_sample_rate_leaves_the_voice_as_it_was():
+    voice = BandedVoice({"tuning": "ratios", "frequency_hz": 3000.0, "mode_ratios": (1.0,)}, sample_rate=48000)
+    with pytest.raises(ParameterError, match="no mode of this object"):
+        voice.prepare(8000)
+    assert voice.sample_rate == 48000
+    voice.trigger()
+    x = voice.process(4800, dtype=np.float64)
+    spectrum = np.abs(np.fft.rfft(x))
+    assert np.fft.rfftfreq(x.size, 1 / 48000)[np.argmax(spectrum)] == pytest.approx(3000.0, abs=10.0)
 
 
 def test_a_new_bow_velocity_glides_and_the_amplitude_follows_it():
@@ -205,8 +251,13 @@ def test_a_harder_bow_brings_a_brighter_tone():
 def test_bow_map_refuses_what_cannot_be_bowed_or_measured():
     with pytest.raises(ParameterError, match="model 'twang' cannot be bowed"):
         bow_map(get_model("twang"))
-    with pytest.raises(ParameterError, match="duration_s = 0.1 is out of range; allowed: 0.5 to 30 s"):
+    with pytest.raises(ParameterError, match="duration_s = 0.1 is out of range; allowed: 1 to 30 s"):
         bow_map(MODEL, duration_s=0.1)
+    with pytest.raises(ParameterError, match="model None cannot be bowed"):
+        bow_map(None)
+    with pytest.raises(ParameterError, match="velocities_m_s = \\['a'\\] is not a list of numbers"):
+        bow_map(MODEL, velocities_m_s=["a"])
+    assert bow_map(MODEL, velocities_m_s=[0.3], forces_n=[3.0], duration_s=np.float32(1.0)).sustained.all()
     with pytest.raises(ParameterError, match="bow_force_n"):
         bow_map(MODEL, forces_n=[100.0])
     with pytest.raises(ParameterError, match="velocities_m_s has 0 values"):

@@ -381,7 +381,7 @@ def test_bow_map_draws_the_region_and_prints_its_limits(tmp_path):
 
 @pytest.mark.parametrize("args,needles", [
     (["twang"], ["model 'twang' cannot be bowed"]),
-    (["banded", "--duration", "0.2"], ["duration_s = 0.2", "0.5 to 30 s"]),
+    (["banded", "--duration", "0.2"], ["duration_s = 0.2", "1 to 30 s"]),
     (["banded", "--duration", "soon"], ["duration = 'soon'"]),
     (["banded", "--forces", "1"], ["forces = 1", "2 to 200"]),
     (["banded", "--set", "bow_force_n=50"], ["bow_force_n", "0.01 to 20 N"]),

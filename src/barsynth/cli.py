@@ -359,7 +359,7 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
 @click.option("--forces", "force_count", default=16, show_default=True, type=int, metavar="N",
               help="How many bow forces, spread logarithmically over bow_force_n's range.")
 @click.option("--duration", "duration", default="2.0", show_default=True, metavar="S",
-              help="How long each setting is bowed before its amplitude is read (0.5 to 30 s).")
+              help="How long each setting is bowed before its amplitude is read (1 to 30 s).")
 @click.option("--sample-rate", "sample_rate", default="44100", show_default=True, metavar="HZ",
               help="Sample rate in Hz.")
 @click.option("--json", "as_json", is_flag=True, help="Print the whole map as JSON.")
@@ -387,7 +387,7 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
     try:
         seconds = float(duration)
     except ValueError:
-        raise ParameterError(f"parameter duration = {duration!r} is not a number; allowed: 0.5 to 30 s") from None
+        raise ParameterError(f"parameter duration = {duration!r} is not a number; allowed: 1 to 30 s") from None
     for name, count in (("velocities", velocity_count), ("forces", force_count)):
         if not 2 <= count <= 200:
             raise ParameterError(f"parameter {name} = {count} is out of range; allowed: 2 to 200 values")

@@ -20,10 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import check_number
 from ..errors import ParameterError
 
 STEADY_WINDOW_S = 0.25
 """The steady amplitude is the RMS velocity over the last window of this length (s)."""
+SHORTEST_S = 1.0
+"""The shortest bowing a map accepts (s): two windows after the bow's attack (up to 0.5 s)."""
 SUSTAIN_FRACTION = 0.05
 """A setting sustains when the steady RMS velocity is at least this fraction of the bow velocity ..."""
 STEADY_TOLERANCE = 0.1
@@ -69,14 +72,18 @@ def steady_amplitude(velocity: np.ndarray, sample_rate: float) -> tuple[float, f
     """RMS of the last ``STEADY_WINDOW_S`` of a signal and of the window before it."""
     n = int(round(STEADY_WINDOW_S * sample_rate))
     if velocity.size < 2 * n:
-        raise ParameterError(f"parameter duration_s is too short to measure a steady amplitude; allowed: at "
-                             f"least {2 * STEADY_WINDOW_S:g} s")
+        raise ParameterError(f"parameter duration_s = {velocity.size / sample_rate:g} is too short to measure a "
+                             f"steady amplitude; allowed: at least {2 * STEADY_WINDOW_S:g} s")
     last, before = velocity[-n:], velocity[-2 * n:-n]
     return float(np.sqrt(np.mean(last ** 2))), float(np.sqrt(np.mean(before ** 2)))
 
 
 def _grid(name: str, values: Any, parameter: Any) -> np.ndarray:
-    grid = np.asarray(values, dtype=np.float64).ravel()
+    try:
+        grid = np.asarray(values, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        raise ParameterError(f"parameter {name} = {values!r} is not a list of numbers; allowed: 1 to 200 values, "
+                             f"each {parameter.range_text()}") from None
     if grid.size == 0 or grid.size > 200:
         raise ParameterError(f"parameter {name} has {grid.size} values; allowed: 1 to 200 values")
     for value in grid:
@@ -98,7 +105,7 @@ def bow_map(model: Any, parameters: Any = None, *, velocities_m_s: Any = None, f
         The grid; default 24 velocities and 16 forces spread logarithmically over
         the parameters' ranges.
     duration_s
-        How long each setting is bowed before its amplitude is read (s, 0.5 to 30).
+        How long each setting is bowed before its amplitude is read (s, 1 to 30).
 
     Examples
     --------
@@ -110,13 +117,11 @@ def bow_map(model: Any, parameters: Any = None, *, velocities_m_s: Any = None, f
     from ..models.base import resolve_parameters
     from ..models.rendering import check_sample_rate
 
-    table = model.table
-    if not all(name in table.names for name in _NEEDED) or "bow" not in table["excitation"].choices:
-        raise ParameterError(f"model {model.name!r} cannot be bowed; allowed: a model with excitation = bow")
-    if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) \
-            or not 2 * STEADY_WINDOW_S <= duration_s <= 30.0:
-        raise ParameterError(f"parameter duration_s = {duration_s!r} is out of range; allowed: "
-                             f"{2 * STEADY_WINDOW_S:g} to 30 s")
+    table = getattr(model, "table", None)
+    if table is None or not all(name in table.names for name in _NEEDED) or "bow" not in table["excitation"].choices:
+        raise ParameterError(f"model {getattr(model, 'name', model)!r} cannot be bowed; allowed: a model with "
+                             "excitation = bow")
+    duration_s = check_number("duration_s", duration_s, "s", minimum=SHORTEST_S, maximum=30.0)
     rate = check_sample_rate(sample_rate)
     base = table.as_dict(resolve_parameters(model, parameters))
     v_param, f_param = table["bow_velocity_m_s"], table["bow_force_n"]

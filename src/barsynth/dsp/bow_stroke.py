@@ -115,9 +115,13 @@ class BowControls:
                   (stopping + ramp + lift_delay, 1.0), (stopping + 2 * ramp + lift_delay, 0.0))
 
     def stop(self, *, ramp: int, lift_delay: int) -> None:
-        """Slow the bow to rest from now (``ramp`` samples from full speed), then lift it."""
+        """Slow the bow to rest from now (``ramp`` samples from full speed), then lift it.
+        A bow already at rest (stopping, lifted, or never started) is left as it is."""
         now = self.now
         speed, pressure = self.value(SPEED, now), self.value(PRESSURE, now)
+        times, speeds = self.lines[SPEED]
+        if speed == 0.0 and not np.any(speeds[times > now] > 0.0):
+            return
         resting = now + ramp * speed
         self._set(SPEED, (now, speed), (resting, 0.0))
         self._set(PRESSURE, (now, pressure), (resting + lift_delay, pressure),

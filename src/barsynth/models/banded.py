@@ -170,9 +170,16 @@ class BandedVoice:
         return self._params
 
     def prepare(self, sample_rate: float, max_block: int | None = None) -> None:
-        """Set the sample rate (Hz), design the loops and reset."""
-        self.sample_rate = check_sample_rate(sample_rate)
-        self._design()
+        """Set the sample rate (Hz), design the loops and reset. A refused rate changes nothing."""
+        rate = check_sample_rate(sample_rate)
+        previous = getattr(self, "sample_rate", None)
+        self.sample_rate = rate
+        try:
+            self._design()
+        except Exception:
+            if previous is not None:  # the loops designed for it are still in place
+                self.sample_rate = previous
+            raise
         self.reset()
 
     def _design(self) -> None:
@@ -197,7 +204,7 @@ class BandedVoice:
             coeffs[row, K.C_BOW_AT] = b
         self._coeffs = coeffs
         self._delays = np.array([d.delay for d in designs], dtype=np.int64)
-        self._freqs, self._strike_shape, self._mass = freqs[index], strike, mass
+        self._freqs, self._strike_shape, self._mass, self._index = freqs[index], strike, mass, index
 
     def reset(self) -> None:
         """Silence: every loop emptied, nothing pending."""
@@ -209,23 +216,33 @@ class BandedVoice:
     def set_parameters(self, **values: Any) -> None:
         """Change parameters (validated); the loops are redesigned, what rings keeps ringing."""
         params = resolve_parameters(MODEL, {**BANDED_TABLE.as_dict(self._params), **values})
-        old = self._params
+        old, old_index = self._params, self._index
         self._params = params
         try:
-            buffers, states, position = self._buffers, self._states, self._position
             self._design()
         except Exception:
             self._params = old
             raise
-        if self._coeffs.shape[0] == states.shape[0] and buffers.shape[1] >= int(self._delays.max()) + 2:
-            self._buffers, self._states, self._position = buffers, states, position
-        else:
-            self._buffers, self._states, self._position = K.empty_bank(len(self._delays), int(self._delays.max()))
+        if not (np.array_equal(self._index, old_index) and self._buffers.shape[1] >= int(self._delays.max()) + 2):
+            self._carry_over(old_index)
         glide = self._samples(BOW_GLIDE_S)
         if params.bow_velocity_m_s != old.bow_velocity_m_s:
             self._bow.glide(VELOCITY, params.bow_velocity_m_s, glide)
         if params.bow_force_n != old.bow_force_n:
             self._bow.glide(FORCE, params.bow_force_n, glide)
+
+    def _carry_over(self, old_index: np.ndarray) -> None:
+        """New loops for a changed set of modes: each mode that stays keeps its state and
+        its recent past (what rings keeps ringing); a new mode starts silent."""
+        buffers, states, position = K.empty_bank(len(self._delays), int(self._delays.max()))
+        old_mask, mask = self._buffers.shape[1] - 1, buffers.shape[1] - 1
+        ages = np.arange(1, min(self._buffers.shape[1], buffers.shape[1]))  # samples ago
+        for row, mode in enumerate(self._index):
+            found = np.flatnonzero(old_index == mode)
+            if found.size:
+                buffers[row, (position[0] - ages) & mask] = self._buffers[found[0], (self._position[0] - ages) & old_mask]
+                states[row] = self._states[found[0]]
+        self._buffers, self._states, self._position = buffers, states, position
 
     def _add_force(self, change: np.ndarray, held: float) -> None:
         """Add a force change to what is pending; ``held`` stays on after it (a release)."""
