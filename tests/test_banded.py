@@ -14,7 +14,8 @@ from barsynth.analysis import measure_partial
 from barsynth.dsp.mallet import hertz_stiffness, mallet_pulse
 from barsynth.errors import ParameterError
 from barsynth.models import get_model
-from barsynth.models.banded import HARDEST_CONTACT_S, SOFTEST_CONTACT_S, BandedVoice
+from barsynth.models.banded import BandedVoice
+from barsynth.models.shared import HARDEST_CONTACT_S, SOFTEST_CONTACT_S
 from barsynth.physics import bar_frequencies, mode_shape
 from barsynth.presets import preset_names, preset_parameters
 

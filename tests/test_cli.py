@@ -393,3 +393,42 @@ def test_bow_map_bad_input_writes_nothing(tmp_path, args, needles):
     assert_one_line_error(r, *needles)
     assert not out.exists()
     assert_one_line_error(run("bow-map", "banded", "-o", str(tmp_path / "map.jpg")), "must end in .png")
+
+
+# -- the finite-difference bar and the undercut tuner ---------------------------------------
+def test_fd_renders_describes_with_errors_and_lists_presets(tmp_path):
+    out = tmp_path / "marimba.wav"
+    r = run("render", "fd", "--preset", "marimba-bar", "--duration", "1", "-o", str(out))
+    assert r.exit_code == 0, r.output
+    x, rate = soundfile.read(out)
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size)))
+    assert np.fft.rfftfreq(x.size, 1 / rate)[np.argmax(spectrum)] == pytest.approx(262.7, abs=1.5)
+    d = json.loads(run("describe", "fd", "--preset", "marimba-bar", "--json").output)
+    assert d["modes"][1]["frequency_hz"] / d["modes"][0]["frequency_hz"] == pytest.approx(4.0, rel=0.003)
+    assert all(m["error_cents"] < 0 for m in d["modes"])
+    assert "error (cents)" in run("describe", "fd").output
+    listed = run("presets", "fd").output
+    assert all(name in listed for name in ("uniform-bar", "marimba-bar", "xylophone-bar", "tapered-bar", "ruler"))
+
+
+def test_tune_undercut_finds_the_depth_and_says_how_to_hear_it():
+    r = run("tune-undercut", "--material", "rosewood", "--length", "0.38", "--thickness", "0.02", "--json")
+    assert r.exit_code == 0, r.output
+    found = json.loads(r.output)
+    assert found["ratios"][1] == pytest.approx(4.0, abs=1e-6) and 0.5 < found["undercut_depth"] < 0.7
+    assert found["fd_parameters"]["profile"] == "parabolic"
+    text = run("tune-undercut", "--material", "rosewood", "--length", "0.25", "--thickness", "0.02",
+               "--target-ratio", "3", "--profile", "circular", "--undercut-width", "0.5").output
+    assert "circular undercut over 0.5 of the length" in text and "barsynth render fd --set" in text
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--material", "rosewood", "--length", "0.38", "--thickness", "0.02", "--target-ratio", "1.5"],
+     ["target_ratio = 1.5 cannot be reached", "allowed: 2.7565"]),
+    (["--material", "rosewood", "--length", "9", "--thickness", "0.02"], ["length_m", "0.02 to 3 m"]),
+    (["--length", "0.38", "--thickness", "0.02"], ["give --material name"]),
+    (["--material", "rosewood", "--length", "0.38", "--thickness", "0.02", "--undercut-width", "0"],
+     ["undercut_width = 0.0", "0.05 to 1"]),
+])
+def test_tune_undercut_bad_input(args, needles):
+    assert_one_line_error(run("tune-undercut", *args), *needles)

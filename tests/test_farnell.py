@@ -158,7 +158,7 @@ def test_seeds_and_silence_before_the_trigger():
 def test_frequency_change_while_sounding_glides_without_a_click():
     voice = FarnellVoice({"vibrato_depth_hz": 1.0})
     voice.trigger()
-    before = voice.process(int(0.3 * RATE), dtype=np.float64)
+    voice.process(int(0.3 * RATE), dtype=np.float64)
     voice.set_parameters(frequency_hz=600.0)
     after, lanes = voice.process(int(0.05 * RATE), dtype=np.float64, trace=True)
     steps = -np.diff(np.concatenate([[0.0], lanes["drive"]]))

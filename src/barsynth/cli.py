@@ -222,20 +222,24 @@ def describe(model_name, preset, assignments, sample_rate, as_json):
     resolved = _resolve(model, preset, assignments)
     rate = _sample_rate(sample_rate)
     found = model.describe(resolved, sample_rate=rate)
+    # a reference model also says how far each mode is from the converged bar
+    errors = model.errors_cents(resolved, sample_rate=rate) if hasattr(model, "errors_cents") else None
     if as_json:
         _json_out({
             "model": model.name,
             "sample_rate": rate,
             "parameters": model.table.as_dict(resolved),
-            "modes": [m.to_json() for m in found],
+            "modes": [m.to_json() | ({"error_cents": errors[k]} if errors else {}) for k, m in enumerate(found)],
         })
         return
     click.echo(f"{model.name} at {rate:g} Hz")
     for name, value in model.table.as_dict(resolved).items():
         click.echo(f"  {name:<24} {_shown(value)}")
-    click.echo(f"{'group':<18} {'frequency (Hz)':>15} {'gain':>8} {'T60 (s)':>9}")
-    for m in found:
-        click.echo(f"{m.group:<18} {m.frequency_hz:>15.3f} {m.gain:>8.4f} {m.t60_s:>9.3f}")
+    error_head = f" {'error (cents)':>14}" if errors else ""
+    click.echo(f"{'group':<18} {'frequency (Hz)':>15} {'gain':>8} {'T60 (s)':>9}{error_head}")
+    for k, m in enumerate(found):
+        error = f" {errors[k]:>14.2f}" if errors else ""
+        click.echo(f"{m.group:<18} {m.frequency_hz:>15.3f} {m.gain:>8.4f} {m.t60_s:>9.3f}{error}")
 
 
 def _output_format(path: Path) -> str:
@@ -348,6 +352,63 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
         jobs.append((plot_path, lambda tmp: plot_sound(samples, rate, tmp, title=title)))
     _write_all(jobs)
     click.echo(f"wrote {output} ({seconds:g} s at {rate:g} Hz)")
+
+
+@main.command("tune-undercut")
+@click.option("--material", metavar="NAME", help="A material from `barsynth materials`.")
+@click.option("--youngs-modulus", "youngs_modulus_pa", type=float, metavar="PA",
+              help="Young's modulus E in Pa (instead of --material).")
+@click.option("--density", "density_kg_m3", type=float, metavar="KG_M3",
+              help="Density rho in kg/m^3 (instead of --material).")
+@click.option("--length", "length_m", type=float, required=True, metavar="M", help="Bar length L in m.")
+@click.option("--thickness", "thickness_m", type=float, required=True, metavar="M",
+              help="Full thickness h in m (bending direction).")
+@click.option("--width", "width_m", type=float, default=0.04, show_default=True, metavar="M", help="Bar width in m.")
+@click.option("--target-ratio", type=float, default=4.0, show_default=True, metavar="R",
+              help="The f2/f1 to tune to (4 marimba and vibraphone, 3 xylophone).")
+@click.option("--profile", "kind", type=click.Choice(["parabolic", "circular"]), default="parabolic",
+              show_default=True, help="Shape of the undercut.")
+@click.option("--undercut-width", type=float, default=0.6, show_default=True, metavar="FRACTION",
+              help="Length of the undercut, as a fraction of the bar's length.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, width_m, target_ratio, kind,
+                  undercut_width, as_json):
+    """The undercut depth that tunes a free-free bar's f2/f1, and f3/f1 there.
+
+    \b
+    Example:
+      barsynth tune-undercut --material rosewood --length 0.38 --thickness 0.02 --target-ratio 4
+    """
+    from . import physics
+    from .checks import check_number
+    from .physics.undercut import tune_undercut as tune
+
+    if material is not None:
+        if youngs_modulus_pa is not None or density_kg_m3 is not None:
+            raise ParameterError("give either --material or --youngs-modulus and --density, not both")
+        mat = physics.material(material)
+        youngs_modulus_pa, density_kg_m3 = mat.youngs_modulus_pa, mat.density_kg_m3
+    elif youngs_modulus_pa is None or density_kg_m3 is None:
+        raise ParameterError("give --material NAME, or both --youngs-modulus PA and --density KG_M3")
+    from .models.fd import FD_TABLE
+
+    bar = {name: FD_TABLE[name].validate(value) for name, value in (
+        ("youngs_modulus_pa", youngs_modulus_pa), ("density_kg_m3", density_kg_m3), ("length_m", length_m),
+        ("thickness_m", thickness_m), ("width_m", width_m), ("undercut_width", undercut_width))}
+    check_number("target_ratio", target_ratio, "", minimum=1.0)
+    cut_width = bar.pop("undercut_width")
+    tuned = tune(target_ratio=target_ratio, kind=kind, undercut_width=cut_width, **bar)
+    settings = {**bar, "profile": kind, "undercut_depth": round(tuned.profile.depth, 6), "undercut_width": cut_width}
+    if as_json:
+        _json_out({**tuned.to_json(), "fd_parameters": settings})
+        return
+    click.echo(f"{kind} undercut over {cut_width:g} of the length: depth {tuned.profile.depth:.4f} of the thickness "
+               f"({tuned.profile.depth * bar['thickness_m'] * 1000:.2f} mm)")
+    click.echo(f"{'mode':>4} {'frequency (Hz)':>15} {'ratio':>8}")
+    for n, (f, r) in enumerate(zip(tuned.frequencies_hz, tuned.ratios), start=1):
+        click.echo(f"{n:>4} {f:>15.3f} {r:>8.4f}")
+    click.echo("hear it: barsynth render fd " + " ".join(f"--set {k}={_shown(v)}" for k, v in settings.items())
+               + " -o tuned.wav")
 
 
 @main.command("bow-map")

@@ -54,3 +54,12 @@ def friction_given_width(relative_velocity_m_s: float, force_n: float, inverse_w
     if abs(x) > 40.0:  # exp underflows; the friction is nil this far out
         return 0.0
     return force_n * x * math.exp(0.5 - 0.5 * x * x)
+
+
+@njit(cache=True, inline="always")
+def friction_slope(relative_velocity_m_s: float, force_n: float, inverse_width: float) -> float:
+    """d(friction)/d(relative velocity) (N s/m): ``F (1 - x^2) exp((1 - x^2) / 2) / w``."""
+    x = relative_velocity_m_s * inverse_width
+    if abs(x) > 40.0:
+        return 0.0
+    return force_n * inverse_width * (1.0 - x * x) * math.exp(0.5 - 0.5 * x * x)

@@ -31,19 +31,17 @@ import numpy as np
 
 from ..dsp import banded_kernel as K
 from ..dsp.banded import design_loop
-from ..dsp.bow_stroke import FORCE, LIFT_DELAY_S, VELOCITY, BowControls
 from ..dsp.mallet import hertz_stiffness, mallet_pulse, release_ramp
 from ..errors import ParameterError
 from ..parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
 from .base import Mode, resolve_parameters
-from .rendering import check_block_size, check_dtype, check_sample_rate, check_seed, render_voice
+from .rendering import check_block_size, check_dtype, check_sample_rate
+from .shared import (BarModel, BowedBarVoice, bar_size_parameters, bow_parameters, level_parameter,
+                     mallet_contact_s, mallet_parameters)
 
 MAX_MODES = 24
 MIN_Q = 3.0  # below this a mode is not a ringing loop (see dsp.banded)
 LOWEST_HZ = 20.0
-SOFTEST_CONTACT_S = 0.010  # mallet_hardness 0: a soft yarn mallet at 1 m/s
-HARDEST_CONTACT_S = 0.0002  # mallet_hardness 1: a hard plastic mallet at 1 m/s
-BOW_GLIDE_S = 0.020  # a new bow speed or force is reached over this time
 
 BANDED_TABLE = ParameterTable(
     "banded",
@@ -52,12 +50,7 @@ BANDED_TABLE = ParameterTable(
                   "where the modes come from: physics (a uniform free-free bar of the material and size "
                   "below) or ratios (frequency_hz x mode_ratios, with mode_t60s_s)",
                   kind=CHOICE, choices=("physics", "ratios")),
-        Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 69e9, "tuning = physics: Young's modulus E", scale="log"),
-        Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 2700.0, "tuning = physics: density rho", scale="log"),
-        Parameter("length_m", "m", 0.02, 3.0, 0.30, "tuning = physics: length of the bar", scale="log"),
-        Parameter("thickness_m", "m", 0.0003, 0.1, 0.01, "tuning = physics: thickness h (bending direction)",
-                  scale="log"),
-        Parameter("width_m", "m", 0.002, 0.5, 0.04, "tuning = physics: width (sets the mass)", scale="log"),
+        *bar_size_parameters("tuning = physics: "),
         Parameter("mode_count", "", 1, MAX_MODES, 4, "tuning = physics: how many modes", kind=INT),
         Parameter("frequency_hz", "Hz", 20.0, 5000.0, 220.0, "tuning = ratios: the fundamental", scale="log"),
         Parameter("mode_ratios", "", 0.25, 200.0, (1.0, 4.0, 10.0),
@@ -77,25 +70,12 @@ BANDED_TABLE = ParameterTable(
                   "where it is struck or plucked: fraction of the length (bar) or of the circumference (ring)"),
         Parameter("pickup_position", "", 0.0, 1.0, 0.0,
                   "where its velocity is picked up, as strike_position"),
-        Parameter("mallet_hardness", "", 0.0, 1.0, 0.7,
-                  "0 soft (10 ms contact at 1 m/s) to 1 hard (0.2 ms): harder = more high modes"),
-        Parameter("mallet_velocity_m_s", "m/s", 0.05, 10.0, 1.0, "how fast the mallet arrives", scale="log"),
-        Parameter("mallet_mass_kg", "kg", 0.002, 0.5, 0.03, "mass of the mallet head", scale="log"),
+        *mallet_parameters(),
         Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0,
                   "how far the strike point is held out before a pluck's release", scale="log"),
         Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log"),
-        Parameter("bow_position", "", 0.0, 1.0, 0.0, "where the bow touches, as strike_position"),
-        Parameter("bow_velocity_m_s", "m/s", 0.01, 3.0, 0.3,
-                  "bow speed: the steady amplitude follows it (glides over 20 ms when changed)", scale="log"),
-        Parameter("bow_force_n", "N", 0.01, 20.0, 3.0,
-                  "how hard the bow presses: more force sustains at higher speeds (glides over 20 ms)",
-                  scale="log"),
-        Parameter("bow_duration_s", "s", 0.01, 600.0, 1.5,
-                  "how long a stroke moves the bow before it slows to rest (it then damps the bar for "
-                  "0.5 s and is lifted)", scale="log"),
-        Parameter("bow_ramp_ms", "ms", 1.0, 1000.0, 50.0,
-                  "how long the bow takes to press and speed up, and to slow to rest", scale="log"),
-        Parameter("level_db", "dB", -60.0, 40.0, 0.0, "output gain re the pick-up velocity in m/s"),
+        *bow_parameters(),
+        level_parameter(),
     ],
 )
 
@@ -148,7 +128,7 @@ def _playable(freqs: np.ndarray, sample_rate: float) -> np.ndarray:
     return (freqs >= LOWEST_HZ) & (freqs <= sample_rate / 4)
 
 
-class BandedVoice:
+class BandedVoice(BowedBarVoice):
     """Streaming banded-waveguide voice: ``prepare`` / ``reset`` / ``trigger`` / ``process``.
 
     Examples
@@ -159,15 +139,6 @@ class BandedVoice:
     >>> block.shape, bool(abs(block).max() > 0)
     ((256,), True)
     """
-
-    def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0):
-        self._params = resolve_parameters(MODEL, parameters)
-        check_seed(seed)  # the model is deterministic; the seed is accepted for the common interface
-        self.prepare(sample_rate)
-
-    @property
-    def parameters(self) -> Any:
-        return self._params
 
     def prepare(self, sample_rate: float, max_block: int | None = None) -> None:
         """Set the sample rate (Hz), design the loops and reset. A refused rate changes nothing."""
@@ -211,7 +182,7 @@ class BandedVoice:
         self._buffers, self._states, self._position = K.empty_bank(len(self._delays), int(self._delays.max()))
         self._pending = np.zeros(0)
         self._tail = 0.0
-        self._bow = BowControls(velocity_m_s=self._params.bow_velocity_m_s, force_n=self._params.bow_force_n)
+        self._bow = self._new_bow()
 
     def set_parameters(self, **values: Any) -> None:
         """Change parameters (validated); the loops are redesigned, what rings keeps ringing."""
@@ -225,11 +196,7 @@ class BandedVoice:
             raise
         if not (np.array_equal(self._index, old_index) and self._buffers.shape[1] >= int(self._delays.max()) + 2):
             self._carry_over(old_index)
-        glide = self._samples(BOW_GLIDE_S)
-        if params.bow_velocity_m_s != old.bow_velocity_m_s:
-            self._bow.glide(VELOCITY, params.bow_velocity_m_s, glide)
-        if params.bow_force_n != old.bow_force_n:
-            self._bow.glide(FORCE, params.bow_force_n, glide)
+        self._glide_bow(old, params)
 
     def _carry_over(self, old_index: np.ndarray) -> None:
         """New loops for a changed set of modes: each mode that stays keeps its state and
@@ -253,18 +220,13 @@ class BandedVoice:
         pending[change.size:] += held
         self._pending, self._tail = pending, self._tail + held
 
-    def _samples(self, seconds: float) -> int:
-        return int(round(seconds * self.sample_rate))
-
     def trigger(self) -> None:
         """Strike, start a bow stroke, or pluck now, on top of whatever still rings."""
         p = self._params
         if p.excitation == "bow":
-            self._bow.start(duration=self._samples(p.bow_duration_s), ramp=self._samples(p.bow_ramp_ms * 1e-3),
-                            lift_delay=self._samples(LIFT_DELAY_S))
+            self._start_stroke()
         elif p.excitation == "strike":
-            contact = SOFTEST_CONTACT_S * (HARDEST_CONTACT_S / SOFTEST_CONTACT_S) ** p.mallet_hardness
-            stiffness = hertz_stiffness(contact, p.mallet_mass_kg)
+            stiffness = hertz_stiffness(mallet_contact_s(p.mallet_hardness), p.mallet_mass_kg)
             pulse = mallet_pulse(mass_kg=p.mallet_mass_kg, velocity_m_s=p.mallet_velocity_m_s,
                                  stiffness=stiffness, sample_rate=self.sample_rate)
             self._add_force(pulse, 0.0)
@@ -274,11 +236,6 @@ class BandedVoice:
             force = p.pluck_displacement_mm * 1e-3 / compliance if compliance > 0 else 0.0
             ramp = release_ramp(-force, p.release_time_ms * 1e-3, self.sample_rate)
             self._add_force(ramp, -force)
-
-    def release(self) -> None:
-        """Stop a bow stroke now: the bow slows to rest, damps the bar, and is lifted.
-        (A strike or pluck simply rings on.)"""
-        self._bow.stop(ramp=self._samples(self._params.bow_ramp_ms * 1e-3), lift_delay=self._samples(LIFT_DELAY_S))
 
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples: velocity at the pick-up (m/s) times the level."""
@@ -308,7 +265,7 @@ class BandedVoice:
             self._pending = self._pending[stop:]
 
 
-class BandedModel:
+class BandedModel(BarModel):
     """Banded-waveguide objects as a barsynth model (see the module docstring)."""
 
     name = "banded"
@@ -326,14 +283,7 @@ class BandedModel:
         return [Mode("mode", float(freqs[k]), float(strike[k] * pickup[k]), float(t60s[k]))
                 for k in np.flatnonzero(keep)]
 
-    def voice(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0) -> BandedVoice:
-        return BandedVoice(parameters, sample_rate=sample_rate, seed=seed)
-
-    def render(self, parameters: Any = None, *, duration_s: float = 2.0, sample_rate: float = 48000.0,
-               seed: int | None = 0, normalize: bool = True, dtype: Any = np.float32) -> np.ndarray:
-        """One strike, bow stroke or pluck, offline (peak at -1 dBFS unless ``normalize`` is false)."""
-        return render_voice(self.voice(parameters, sample_rate=sample_rate, seed=seed), duration_s,
-                            normalize=normalize, dtype=dtype)
-
 
 MODEL = BandedModel()
+BandedModel.voice_class = BandedVoice
+BandedVoice.model = MODEL

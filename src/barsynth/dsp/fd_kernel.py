@@ -1,0 +1,257 @@
+"""Numba kernel of the implicit finite-difference bar (barsynth spec 3.3).
+
+Sources: S. Bilbao, Numerical Sound Synthesis (Wiley 2009), ch. 7 (the theta scheme for
+the bar, the bow solved by Newton's method); A. Chaigne and V. Doutaut, JASA 101 (1997)
+(the Hertzian mallet coupled to the bar). With the grid operator ``M, K, C`` of
+:mod:`barsynth.physics.grid` and time step ``k = 1 / sample_rate``, the scheme
+
+    M (u+ - 2u + u-) / k^2 = -K (theta u + (1 - theta) (u+ + u-) / 2) - C (u+ - u-) / (2k) + f
+
+is solved each step for ``s = u+ + u-`` from
+
+    A s = B u + (C / k) u- + f,   A = M/k^2 + (1 - theta) K / 2 + C / (2k),   B = 2M/k^2 - theta K
+
+with ``A`` (pentadiagonal, symmetric positive definite) factored once as ``L D L^T``.
+Forces enter at points through interpolation vectors (already free of rigid-body
+parts for a free-free bar). The mallet's contact force is explicit (from this step's
+bar and mallet); the bow's friction is either solved with the step (Newton on the
+scalar equation for the relative velocity, the dynamic stick-slip form) or taken
+from the previous step (the simplified forced-oscillation form).
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+from numba import njit
+
+from .bow_stroke import FORCE, PRESSURE, SPEED, VELOCITY, line_value
+from .friction import friction_given_width, friction_slope, stick_width
+
+# scalar state (the `scalars` array)
+X_MALLET = 0  # mallet position (m)
+X_MALLET_PREV = 1
+X_MALLET_ON = 2  # 1 while the mallet may touch
+X_DV = 3  # the bow's last relative velocity (m/s): Newton's starting point, the explicit form's input
+X_HISTORY = 4  # write position in the decimation filter's history
+N_SCALARS = 5
+
+# constants (the `constants` array)
+K_MALLET_MASS = 0
+K_MALLET_STIFFNESS = 1
+K_MALLET_EXPONENT = 2
+K_SAMPLE_RATE = 3
+K_NEWTON = 4  # 1: the bow by Newton with each step, 0: explicit
+K_BOW_GAIN = 5  # eta: bow-point velocity per newton of bow force within one step (m/s/N)
+K_LEVEL = 6
+K_SUBSTEPS = 7  # scheme steps per output sample (oversampling); above 1 the output is low-passed and decimated
+N_CONSTANTS = 8
+
+MAX_NEWTON_STEPS = 40
+
+
+def factor(diagonal: np.ndarray, first: np.ndarray, second: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``L D L^T`` of a symmetric pentadiagonal matrix: ``(l1, l2, 1 / d)``, where ``l1[i]``
+    and ``l2[i]`` are ``L[i, i-1]`` and ``L[i, i-2]``."""
+    n = diagonal.size
+    l1, l2, d = np.zeros(n), np.zeros(n), np.zeros(n)
+    for i in range(n):
+        if i >= 2:
+            l2[i] = second[i - 2] / d[i - 2]
+        if i >= 1:
+            l1[i] = (first[i - 1] - (l2[i] * d[i - 2] * l1[i - 1] if i >= 2 else 0.0)) / d[i - 1]
+        d[i] = diagonal[i] - l1[i] ** 2 * (d[i - 1] if i >= 1 else 0.0) - l2[i] ** 2 * (d[i - 2] if i >= 2 else 0.0)
+        if not d[i] > 0.0:
+            raise ValueError("the step matrix is not positive definite")
+    return l1, l2, 1.0 / d
+
+
+PAD = 2
+"""Every node vector is stored with two zeros before and after it, so the five-point
+stencils and the substitutions need no tests at the ends."""
+
+
+def padded(vector: np.ndarray) -> np.ndarray:
+    out = np.zeros(vector.size + 2 * PAD)
+    out[PAD:-PAD] = vector
+    return out
+
+
+def stencils(b: np.ndarray, c: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's coefficient rows from the dense matrices ``B``, ``C / k`` and ``A``.
+
+    ``bands`` rows, each padded: B's coefficients of nodes i, i-1, i+1, i-2, i+2, then
+    (C/k)'s of i, i-1, i+1. ``factors`` rows, padded: l1, l2 and 1/d of ``A = L D L^T``.
+    """
+    n = b.shape[0]
+    bands = np.zeros((8, n + 2 * PAD))
+    for row, (matrix, offset) in enumerate(((b, 0), (b, -1), (b, 1), (b, -2), (b, 2), (c, 0), (c, -1), (c, 1))):
+        for i in range(n):
+            j = i + offset
+            if 0 <= j < n:
+                bands[row, PAD + i] = matrix[i, j]
+    l1, l2, inv_d = factor(np.diagonal(a).copy(), np.diagonal(a, 1).copy(), np.diagonal(a, 2).copy())
+    return bands, np.array([padded(l1), padded(l2), padded(inv_d)])
+
+
+def solve(r: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """``A^-1 r`` for a plain (unpadded) vector, with the kernel's factors."""
+    s = np.zeros(r.size + 2 * PAD)
+    _solve(padded(r), factors[0], factors[1], factors[2], s)
+    return s[PAD:-PAD]
+
+
+@njit(cache=True, inline="always")
+def _solve(r, l1, l2, inv_d, s):  # pragma: no cover - compiled
+    """``s = A^-1 r`` on padded vectors (``s``'s pads stay 0)."""
+    end = r.size - PAD
+    for q in range(PAD, end):
+        s[q] = r[q] - l1[q] * s[q - 1] - l2[q] * s[q - 2]
+    for q in range(end - 1, PAD - 1, -1):
+        s[q] = s[q] * inv_d[q] - l1[q + 1] * s[q + 1] - l2[q + 2] * s[q + 2]
+
+
+@njit(cache=True, fastmath={"contract"})
+def process(out, u, u_prev, bands, factors, contact, bow, pickup, lines, start, scalars, constants, taps, history):
+    """Advance the bar ``out.size`` steps; ``out`` gets the pick-up velocity (m/s) x level.
+
+    Node vectors are padded (:data:`PAD`). ``bands`` and ``factors``: see
+    :func:`stencils`. ``contact`` rows: the mallet point's interpolation vector (for
+    the bar's displacement there) and its force vector. ``bow`` rows: the bow point's
+    interpolation vector and ``A^-1`` times its force vector. ``pickup`` row: the
+    pick-up interpolation vector with rigid-body motion removed. ``lines``, ``start``:
+    the bow's controls (:mod:`barsynth.dsp.bow_stroke`) and the absolute index of
+    ``out[0]``. With ``constants[K_SUBSTEPS] = N > 1`` the scheme runs N steps per output
+    sample and the pick-up velocity passes the low-pass FIR ``taps`` (its recent past in
+    ``history``, a power-of-two ring) before every N-th value is kept.
+    """
+    size = u.size
+    end = size - PAD
+    rate = constants[K_SAMPLE_RATE]
+    b0, bl1, br1, bl2, br2, c0, cl1, cr1 = bands[0], bands[1], bands[2], bands[3], bands[4], bands[5], bands[6], bands[7]
+    l1, l2, inv_d = factors[0], factors[1], factors[2]
+    at_mallet, mallet_force = contact[0], contact[1]
+    at_bow, bow_response = bow[0], bow[1]
+    at_pickup = pickup[0]
+    s = np.zeros(size)
+    mass, stiffness, exponent = constants[K_MALLET_MASS], constants[K_MALLET_STIFFNESS], constants[K_MALLET_EXPONENT]
+    newton = constants[K_NEWTON] > 0.5
+    eta = constants[K_BOW_GAIN]
+    level = constants[K_LEVEL]
+    substeps = int(constants[K_SUBSTEPS])
+    history_mask = history.size - 1
+    h = int(scalars[X_HISTORY])
+    j_speed = j_pressure = j_velocity = j_force = 0
+    for step in range(out.size * substeps):
+        t = step // substeps
+        # the mallet: contact force from this step's bar and mallet positions
+        force = 0.0
+        if scalars[X_MALLET_ON] > 0.5:
+            bar_there = 0.0
+            for q in range(PAD, end):
+                bar_there += at_mallet[q] * u[q]
+            squeeze = scalars[X_MALLET] - bar_there
+            force = stiffness * squeeze ** exponent if squeeze > 0.0 else 0.0
+            z = 2.0 * scalars[X_MALLET] - scalars[X_MALLET_PREV] - force / (mass * rate * rate)
+            scalars[X_MALLET_PREV] = scalars[X_MALLET]
+            scalars[X_MALLET] = z
+            if squeeze <= 0.0 and z < scalars[X_MALLET_PREV]:  # left the bar, moving away
+                scalars[X_MALLET_ON] = 0.0
+        # A s = B u + (C/k) u- + f: the right-hand side formed inside the forward substitution
+        # (the last two values of each substitution ride in registers: the recurrences are the critical path)
+        s1 = s2 = 0.0
+        for q in range(PAD, end):
+            r = (b0[q] * u[q] + bl1[q] * u[q - 1] + br1[q] * u[q + 1] + bl2[q] * u[q - 2] + br2[q] * u[q + 2]
+                 + c0[q] * u_prev[q] + cl1[q] * u_prev[q - 1] + cr1[q] * u_prev[q + 1] + force * mallet_force[q])
+            value = (r - l2[q] * s2) - l1[q] * s1
+            s[q] = value
+            s2 = s1
+            s1 = value
+        x = start + step / substeps
+        pressure, j_pressure = line_value(lines[PRESSURE], x, j_pressure)
+        s1 = s2 = 0.0
+        velocity_out = 0.0
+        if pressure <= 0.0:  # no bow: the backward substitution also steps the bar (u+ = s - u-)
+            for q in range(end - 1, PAD - 1, -1):
+                value = (s[q] * inv_d[q] - l2[q + 2] * s2) - l1[q + 1] * s1
+                s2 = s1
+                s1 = value
+                following = value - u_prev[q]
+                velocity_out += at_pickup[q] * (following - u[q])
+                u_prev[q] = u[q]
+                u[q] = following
+        else:
+            velocity_out, j_speed, j_velocity, j_force = _bowed_step(
+                s, u, u_prev, at_bow, bow_response, at_pickup, lines, x, j_speed, j_velocity, j_force, pressure,
+                scalars, newton, eta, rate, l1, l2, inv_d)
+        # out: the pick-up velocity, straight or through the decimation filter
+        if substeps == 1:
+            out[t] = velocity_out * rate * level
+        else:
+            history[h] = velocity_out * rate
+            if step % substeps == substeps - 1:
+                acc = 0.0
+                for j in range(taps.size):
+                    acc += taps[j] * history[(h - j) & history_mask]
+                out[t] = acc * level
+            h = (h + 1) & history_mask
+    scalars[X_HISTORY] = h
+
+
+@njit(cache=True, inline="always")
+def _bowed_step(s, u, u_prev, at_bow, bow_response, at_pickup, lines, x, j_speed, j_velocity, j_force, pressure,
+                scalars, newton, eta, rate, l1, l2, inv_d):  # pragma: no cover - compiled
+    """The backward substitution, the bow's friction and the step, with the bow on the bar.
+    Returns the pick-up displacement change (m) and the lines' pieces."""
+    end = s.size - PAD
+    s1 = s2 = 0.0
+    for q in range(end - 1, PAD - 1, -1):
+        value = (s[q] * inv_d[q] - l2[q + 2] * s2) - l1[q + 1] * s1
+        s[q] = value
+        s2 = s1
+        s1 = value
+    speed, j_speed = line_value(lines[SPEED], x, j_speed)
+    velocity, j_velocity = line_value(lines[VELOCITY], x, j_velocity)
+    force_set, j_force = line_value(lines[FORCE], x, j_force)
+    v_bow, f_bow = speed * velocity, pressure * force_set
+    inverse_width = 1.0 / stick_width(f_bow)
+    if newton:
+        # the bar's velocity at the bow without the bow, then dv + eta F phi(dv) = v_bow - v0
+        v0 = 0.0
+        for q in range(PAD, end):
+            v0 += at_bow[q] * (s[q] - 2.0 * u_prev[q])
+        v0 *= 0.5 * rate
+        target = v_bow - v0
+        low, high = target - eta * f_bow, target + eta * f_bow
+        dv = min(max(scalars[X_DV], low), high)
+        for _ in range(MAX_NEWTON_STEPS):
+            g = dv + eta * friction_given_width(dv, f_bow, inverse_width) - target
+            if g > 0.0:
+                high = dv
+            else:
+                low = dv
+            slope = 1.0 + eta * friction_slope(dv, f_bow, inverse_width)
+            following = dv - g / slope if slope > 0.0 else 0.5 * (low + high)
+            if not low < following < high:
+                following = 0.5 * (low + high)
+            if abs(following - dv) <= 1e-13 * (1.0 + abs(dv)):
+                dv = following
+                break
+            dv = following
+    else:  # the friction of the bar's velocity one step ago
+        v_then = 0.0
+        for q in range(PAD, end):
+            v_then += at_bow[q] * (u[q] - u_prev[q])
+        dv = v_bow - v_then * rate
+    friction = friction_given_width(dv, f_bow, inverse_width)
+    scalars[X_DV] = dv
+    for q in range(PAD, end):
+        s[q] += friction * bow_response[q]
+    # step: u+ = s - u-, and the pick-up's move (in the same order as the bow-free step)
+    moved = 0.0
+    for q in range(end - 1, PAD - 1, -1):
+        following = s[q] - u_prev[q]
+        moved += at_pickup[q] * (following - u[q])
+        u_prev[q] = u[q]
+        u[q] = following
+    return moved, j_speed, j_velocity, j_force

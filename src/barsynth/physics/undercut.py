@@ -1,0 +1,75 @@
+"""Tuning a bar by undercutting: the depth that gives a target f2/f1 (spec 1.5, 1.6).
+
+Source: T. D. Rossing, Science of Percussion Instruments (2000), ch. 5 (marimba and
+vibraphone bars tuned to 1 : 4, xylophone bars to 1 : 3); the modes of the undercut bar
+come from the grid operator (:func:`barsynth.physics.grid.grid_modes`). Thinning the
+middle of a free-free bar lowers its first mode much more than its second, so f2/f1
+rises from 2.756 (uniform) as the cut deepens; the tuner finds the depth by bracketed
+root finding on that ratio, and reports f3/f1 there (a real marimba's third partial
+usually falls short of 10).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ParameterError
+from .profiles import THINNEST, Profile
+
+
+@dataclass(frozen=True)
+class UndercutTuning:
+    """The result: the undercut (a :class:`Profile`), its modes (Hz) and their ratios to the first."""
+
+    profile: Profile
+    frequencies_hz: np.ndarray
+    target_ratio: float
+
+    @property
+    def ratios(self) -> np.ndarray:
+        return self.frequencies_hz / self.frequencies_hz[0]
+
+    def to_json(self) -> dict:
+        return {"kind": self.profile.kind, "undercut_depth": self.profile.depth,
+                "undercut_width": self.profile.width, "target_ratio": self.target_ratio,
+                "frequencies_hz": self.frequencies_hz.tolist(), "ratios": self.ratios.tolist()}
+
+
+def tune_undercut(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: float, thickness_m: float,
+                  width_m: float = 0.04, target_ratio: float = 4.0, kind: str = "parabolic",
+                  undercut_width: float = 0.6, count: int = 4, points: int = 120) -> UndercutTuning:
+    """The undercut depth (fraction of the thickness) at which a free-free bar's f2/f1 is ``target_ratio``.
+
+    Examples
+    --------
+    >>> tuned = tune_undercut(youngs_modulus_pa=12e9, density_kg_m3=850.0, length_m=0.38, thickness_m=0.02)
+    >>> round(float(tuned.ratios[1]), 4), 0.0 < tuned.profile.depth < 1.0
+    (4.0, True)
+    """
+    from scipy.optimize import brentq
+
+    from .grid import grid_modes
+
+    if not (isinstance(target_ratio, (int, float)) and math.isfinite(target_ratio)):
+        raise ParameterError(f"parameter target_ratio = {target_ratio!r} is not a number; allowed: above 2.756")
+    bar = dict(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3, length_m=length_m,
+               thickness_m=thickness_m, width_m=width_m, bc="free-free", points=points)
+
+    def modes(depth: float) -> np.ndarray:
+        return grid_modes(count=max(count, 3), profile=Profile(kind, depth=depth, width=undercut_width), **bar)
+
+    def miss(depth: float) -> float:
+        f = modes(depth)
+        return f[1] / f[0] - target_ratio
+
+    deepest = 1.0 - THINNEST
+    low, high = miss(0.0) + target_ratio, miss(deepest) + target_ratio
+    if not low < target_ratio < high:
+        raise ParameterError(f"parameter target_ratio = {target_ratio:g} cannot be reached by a {kind} undercut "
+                             f"{undercut_width:g} of the length wide; allowed: {low:.4f} to {high:.4f} "
+                             "(f2/f1, dimensionless)")
+    depth = brentq(miss, 0.0, deepest, xtol=1e-10, rtol=1e-12)
+    return UndercutTuning(Profile(kind, depth=depth, width=undercut_width), modes(depth)[:count], float(target_ratio))
