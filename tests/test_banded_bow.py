@@ -14,6 +14,7 @@ from barsynth.errors import ParameterError
 from barsynth.models import get_model
 from barsynth.models.banded import BandedVoice
 from barsynth.presets import preset_names, preset_parameters
+from streaming import play
 
 MODEL = get_model("banded")
 RATE = 44100
@@ -160,25 +161,10 @@ def test_bowed_blocks_equal_one_long_block(block):
     """Sample-exact, with a stroke, a strike on the bowed bar, a glide and an early stop."""
     events = {0: ("trigger", {}), 9000: ("set", {"bow_force_n": 5.0}), 20000: ("set", {"excitation": "strike"}),
               20001: ("trigger", {}), 30000: ("release", {})}
-    total = 50000
     def run(block_size):
         voice = BandedVoice(bowed(preset_parameters("banded", "marimba")), sample_rate=RATE)
-        out, now = [], 0
-        while now < total:
-            if now in events:
-                action, values = events[now]
-                if action == "trigger":
-                    voice.trigger()
-                elif action == "set":
-                    voice.set_parameters(**values)
-                else:
-                    voice.release()
-            upcoming = [t for t in events if t > now] + [total]
-            count = min(block_size, min(upcoming) - now)
-            out.append(voice.process(count, dtype=np.float64))
-            now += count
-        return np.concatenate(out)
-    whole = run(total)
+        return play(voice, events, 50000, block_size)
+    whole = run(50000)
     assert np.max(np.abs(whole)) > 0.01
     assert np.array_equal(run(block), whole)
 

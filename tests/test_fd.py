@@ -17,6 +17,7 @@ from barsynth.models import get_model
 from barsynth.models.fd import FdVoice, mode_errors_cents
 from barsynth.physics import BOUNDARY_CONDITIONS, bar_frequencies
 from barsynth.physics.undercut import tune_undercut
+from streaming import play
 
 MODEL = get_model("fd")
 RATE = 44100
@@ -150,26 +151,9 @@ def test_a_second_strike_adds_to_the_ringing_bar_without_a_click():
 def test_blocks_equal_one_long_block(block):
     events = {0: ("trigger", {}), 5000: ("set", {"excitation": "bow", "bow_force_n": 2.0}), 5001: ("trigger", {}),
               12000: ("set", {"bow_velocity_m_s": 0.2}), 20000: ("release", {})}
-    total = 30000
-    def run(size):
-        voice = FdVoice({"points": 60}, sample_rate=RATE)
-        out, now = [], 0
-        while now < total:
-            if now in events:
-                action, values = events[now]
-                if action == "trigger":
-                    voice.trigger()
-                elif action == "set":
-                    voice.set_parameters(**values)
-                else:
-                    voice.release()
-            count = min(size, min([t for t in events if t > now] + [total]) - now)
-            out.append(voice.process(count, dtype=np.float64))
-            now += count
-        return np.concatenate(out)
-    whole = run(total)
+    whole = play(FdVoice({"points": 60}, sample_rate=RATE), events, 30000, 30000)
     assert np.max(np.abs(whole)) > 0.01
-    assert np.array_equal(run(block), whole)
+    assert np.array_equal(play(FdVoice({"points": 60}, sample_rate=RATE), events, 30000, block), whole)
 
 
 # -- the bowed bar (spec 3.1), by both forms of the friction ------------------------------

@@ -91,6 +91,21 @@ def main() -> None:
 
 
 # -- physics ----------------------------------------------------------------------------
+def _material_constants(material: str | None, youngs_modulus_pa: float | None,
+                        density_kg_m3: float | None) -> tuple[float, float]:
+    """E and rho from --material, or from --youngs-modulus and --density (not both)."""
+    from . import physics
+
+    if material is not None:
+        if youngs_modulus_pa is not None or density_kg_m3 is not None:
+            raise ParameterError("give either --material or --youngs-modulus and --density, not both")
+        mat = physics.material(material)
+        return mat.youngs_modulus_pa, mat.density_kg_m3
+    if youngs_modulus_pa is None or density_kg_m3 is None:
+        raise ParameterError("give --material NAME, or both --youngs-modulus PA and --density KG_M3")
+    return youngs_modulus_pa, density_kg_m3
+
+
 @main.command()
 @click.option("--material", metavar="NAME", help="A material from `barsynth materials`.")
 @click.option("--youngs-modulus", "youngs_modulus_pa", type=float, metavar="PA",
@@ -115,13 +130,7 @@ def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, bc,
     """
     from . import physics
 
-    if material is not None:
-        if youngs_modulus_pa is not None or density_kg_m3 is not None:
-            raise ParameterError("give either --material or --youngs-modulus and --density, not both")
-        mat = physics.material(material)
-        youngs_modulus_pa, density_kg_m3 = mat.youngs_modulus_pa, mat.density_kg_m3
-    elif youngs_modulus_pa is None or density_kg_m3 is None:
-        raise ParameterError("give --material NAME, or both --youngs-modulus PA and --density KG_M3")
+    youngs_modulus_pa, density_kg_m3 = _material_constants(material, youngs_modulus_pa, density_kg_m3)
     if not 1 <= count <= 1000:
         raise ParameterError(f"parameter count = {count} is out of range; allowed: 1 to 1000 modes")
     freqs = physics.bar_frequencies(
@@ -379,18 +388,11 @@ def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thicknes
     Example:
       barsynth tune-undercut --material rosewood --length 0.38 --thickness 0.02 --target-ratio 4
     """
-    from . import physics
     from .checks import check_number
+    from .models.fd import FD_TABLE
     from .physics.undercut import tune_undercut as tune
 
-    if material is not None:
-        if youngs_modulus_pa is not None or density_kg_m3 is not None:
-            raise ParameterError("give either --material or --youngs-modulus and --density, not both")
-        mat = physics.material(material)
-        youngs_modulus_pa, density_kg_m3 = mat.youngs_modulus_pa, mat.density_kg_m3
-    elif youngs_modulus_pa is None or density_kg_m3 is None:
-        raise ParameterError("give --material NAME, or both --youngs-modulus PA and --density KG_M3")
-    from .models.fd import FD_TABLE
+    youngs_modulus_pa, density_kg_m3 = _material_constants(material, youngs_modulus_pa, density_kg_m3)
 
     bar = {name: FD_TABLE[name].validate(value) for name, value in (
         ("youngs_modulus_pa", youngs_modulus_pa), ("density_kg_m3", density_kg_m3), ("length_m", length_m),
