@@ -91,6 +91,20 @@ def main() -> None:
 
 
 # -- physics ----------------------------------------------------------------------------
+def _material_options(command: Any) -> Any:
+    """--material, or --youngs-modulus and --density, and --length."""
+    for option in reversed([
+        click.option("--material", metavar="NAME", help="A material from `barsynth materials`."),
+        click.option("--youngs-modulus", "youngs_modulus_pa", type=float, metavar="PA",
+                     help="Young's modulus E in Pa (instead of --material)."),
+        click.option("--density", "density_kg_m3", type=float, metavar="KG_M3",
+                     help="Density rho in kg/m^3 (instead of --material)."),
+        click.option("--length", "length_m", type=float, required=True, metavar="M", help="Bar length L in m."),
+    ]):
+        command = option(command)
+    return command
+
+
 def _material_constants(material: str | None, youngs_modulus_pa: float | None,
                         density_kg_m3: float | None) -> tuple[float, float]:
     """E and rho from --material, or from --youngs-modulus and --density (not both)."""
@@ -107,12 +121,7 @@ def _material_constants(material: str | None, youngs_modulus_pa: float | None,
 
 
 @main.command()
-@click.option("--material", metavar="NAME", help="A material from `barsynth materials`.")
-@click.option("--youngs-modulus", "youngs_modulus_pa", type=float, metavar="PA",
-              help="Young's modulus E in Pa (instead of --material).")
-@click.option("--density", "density_kg_m3", type=float, metavar="KG_M3",
-              help="Density rho in kg/m^3 (instead of --material).")
-@click.option("--length", "length_m", type=float, required=True, metavar="M", help="Bar length L in m.")
+@_material_options
 @click.option("--thickness", "thickness_m", type=float, required=True, metavar="M",
               help="Thickness h in m (bending direction).")
 @click.option("--bc", "bc", required=True,
@@ -364,12 +373,7 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
 
 
 @main.command("tune-undercut")
-@click.option("--material", metavar="NAME", help="A material from `barsynth materials`.")
-@click.option("--youngs-modulus", "youngs_modulus_pa", type=float, metavar="PA",
-              help="Young's modulus E in Pa (instead of --material).")
-@click.option("--density", "density_kg_m3", type=float, metavar="KG_M3",
-              help="Density rho in kg/m^3 (instead of --material).")
-@click.option("--length", "length_m", type=float, required=True, metavar="M", help="Bar length L in m.")
+@_material_options
 @click.option("--thickness", "thickness_m", type=float, required=True, metavar="M",
               help="Full thickness h in m (bending direction).")
 @click.option("--width", "width_m", type=float, default=0.04, show_default=True, metavar="M", help="Bar width in m.")
