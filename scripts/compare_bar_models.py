@@ -31,8 +31,8 @@ BAR = {"youngs_modulus_pa": 69e9, "density_kg_m3": 2700.0, "length_m": 0.30, "th
 HIT = {"strike_position": 0.1, "pickup_position": 0.97, "mallet_hardness": 0.9}
 CASES = [
     ("banded", "banded waveguide, 6 modes", {"tuning": "physics", "mode_count": MODES, "q": 300.0}),
-    ("allpass", "all-pass waveguide, order 4", {"bc": "free-free", "allpass_order": 4, "q": 300.0}),
-    ("allpass", "all-pass waveguide, order 16", {"bc": "free-free", "allpass_order": 16, "q": 300.0}),
+    ("allpass", "all-pass waveguide, order 8", {"bc": "free-free", "allpass_order": 8, "q": 300.0}),
+    ("allpass", "all-pass waveguide, order 24", {"bc": "free-free", "allpass_order": 24, "q": 300.0}),
     ("fd", "finite differences, 50 points, 1 step a sample", {"points": 50, "oversampling": 1}),
     ("fd", "finite differences, 100 points, 1 step a sample", {"points": 100, "oversampling": 1}),
     ("fd", "finite differences, 100 points, 4 steps a sample", {"points": 100, "oversampling": 4}),

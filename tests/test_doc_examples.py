@@ -15,6 +15,8 @@ MODULES = [
     "barsynth.models.twang",
     "barsynth.models.farnell",
     "barsynth.models.banded",
+    "barsynth.models.allpass",
+    "barsynth.dsp.allpass_chain",
     "barsynth.models.fd",
     "barsynth.physics.grid",
     "barsynth.physics.profiles",

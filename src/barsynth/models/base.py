@@ -75,6 +75,7 @@ _MODEL_PATHS: dict[str, str] = {
     "twang": "barsynth.models.twang:MODEL",
     "farnell": "barsynth.models.farnell:MODEL",
     "banded": "barsynth.models.banded:MODEL",
+    "allpass": "barsynth.models.allpass:MODEL",
     "fd": "barsynth.models.fd:MODEL",
 }
 
