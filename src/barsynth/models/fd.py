@@ -69,7 +69,8 @@ FD_TABLE = ParameterTable(
                   "scheme steps per output sample: each doubling cuts the step's flattening of high modes "
                   "fourfold (the output is low-passed and decimated)", kind=INT),
         Parameter("sigma0_per_s", "1/s", 0.01, 100.0, 1.0,
-                  "loss at every frequency: each mode decays at least this fast (T60 = 6.91 / sigma0)",
+                  "loss at every frequency: T60 = 6.91 / sigma0 (modes near the step's limit decay slower: "
+                  "see describe)",
                   scale="log"),
         Parameter("sigma1_m2_s", "m^2/s", 0.0, 0.1, 0.002,
                   "loss growing with frequency: adds sigma1 x wavenumber^2 to a mode's decay rate"),
@@ -206,6 +207,7 @@ class FdVoice(BowedBarVoice):
             raise ParameterError("parameters give a step matrix that cannot be solved; allowed: a bar whose grid "
                                  "is well conditioned (try fewer points)") from None
         contact_at = _point(grid, p.strike_position)
+        contact_response = K.solve(contact_at, factors)
         bow_at = _point(grid, p.bow_position)
         bow_response = K.solve(bow_at, factors)
         constants = np.zeros(K.N_CONSTANTS)
@@ -217,10 +219,12 @@ class FdVoice(BowedBarVoice):
         constants[K.K_BOW_GAIN] = 0.5 * rate * float(np.dot(bow_at, bow_response))
         constants[K.K_LEVEL] = 10.0 ** (p.level_db / 20.0)
         constants[K.K_SUBSTEPS] = p.oversampling
+        constants[K.K_MALLET_GAIN] = float(np.dot(contact_at, contact_response))
         taps = decimation_filter(p.oversampling, output_rate)
         pad = K.padded
         return {"grid": grid, "bands": bands, "factors": factors,
-                "contact": np.array([pad(contact_at), pad(contact_at)]), "bow": np.array([pad(bow_at), pad(bow_response)]),
+                "contact": np.array([pad(contact_at), pad(contact_response)]),
+                "bow": np.array([pad(bow_at), pad(bow_response)]),
                 "pickup": pad(_point(grid, p.pickup_position))[None, :], "constants": constants, "taps": taps}
 
     def _apply(self, design: dict) -> None:
@@ -248,7 +252,27 @@ class FdVoice(BowedBarVoice):
             bow = self._bow
             self.reset()
             self._bow = bow
+        elif params.oversampling != old.oversampling:
+            self._change_step(old.oversampling, params.oversampling)
         self._glide_bow(old, params)
+
+    def _change_step(self, old_steps: int, new_steps: int) -> None:
+        """Keep the bar's and the mallet's velocities through a change of step, and resample the
+        decimation filter's past to the new step, so the output carries on. (Going to one step
+        a sample, the output keeps what lies near Nyquist, unfiltered.)"""
+        ratio = old_steps / new_steps  # k_new / k_old
+        self._u_prev = self._u - (self._u - self._u_prev) * ratio
+        z = self._scalars[K.X_MALLET]
+        self._scalars[K.X_MALLET_PREV] = z - (z - self._scalars[K.X_MALLET_PREV]) * ratio
+        old, written = self._history, int(self._scalars[K.X_HISTORY])
+        if old_steps == 1:  # no past was kept: the last output stands for it
+            past = np.full(2, self._scalars[K.X_LAST])
+        else:
+            past = old[(written - 1 - np.arange(old.size)) & (old.size - 1)]  # newest first, one old step apart
+        size = 1 << max(1, int(self._taps.size).bit_length())
+        ages = np.arange(size) * ratio  # the new steps' ages, in old steps (0 = the newest value)
+        self._history = np.interp(ages, np.arange(past.size), past)[::-1].copy()
+        self._scalars[K.X_HISTORY] = 0.0  # the next write goes at 0: the newest value sits at size - 1
 
     def trigger(self) -> None:
         """Strike, start a bow stroke, or pluck now, on top of whatever still rings."""
@@ -275,7 +299,7 @@ class FdVoice(BowedBarVoice):
         values, vectors = eigh(grid.stiffness, np.diag(grid.mass))
         elastic = slice(rigid_mode_count(grid.bc), None)
         values, vectors = values[elastic], vectors[:, elastic]
-        force_at = self._contact[1][K.PAD:-K.PAD]
+        force_at = self._contact[0][K.PAD:-K.PAD]  # (the point vector is also the unit force vector)
         shape = vectors @ ((vectors.T @ force_at) / values)  # the deflection under a unit force
         there = float(np.dot(self._contact[0][K.PAD:-K.PAD], shape))
         return shape * (self._params.pluck_displacement_mm * 1e-3 / there) if there > 0 else shape * 0.0
@@ -304,11 +328,22 @@ def fd_modes(parameters: Any = None, *, sample_rate: float = 48000.0, count: int
     check_stability(p, grid, rate)
     count = min(count, grid.mass.size - rigid_mode_count(grid.bc))
     omega, shapes = grid_eigen(grid, count)
-    decay = p.sigma0_per_s + p.sigma1_m2_s * np.einsum("in,ij,jn->n", shapes, grid.damping_laplacian, shapes)
+    sigma = p.sigma0_per_s + p.sigma1_m2_s * np.einsum("in,ij,jn->n", shapes, grid.damping_laplacian, shapes)
     ringing = discrete_frequency(omega, p.theta, rate * p.oversampling)
     heard = ringing < rate / 2  # (with oversampling, the modes above the output's Nyquist are filtered out)
     return {"grid_hz": omega[heard] / (2 * math.pi), "frequency_hz": ringing[heard],
-            "t60_s": math.log(1000.0) / decay[heard], "shapes": shapes[:, heard], "grid": grid}
+            "t60_s": discrete_t60(omega[heard], sigma[heard], p.theta, rate * p.oversampling),
+            "shapes": shapes[:, heard], "grid": grid}
+
+
+def discrete_t60(omega: np.ndarray, sigma: np.ndarray, theta: float, step_rate: float) -> np.ndarray:
+    """The T60 (s) at which the scheme rings a grid mode (angular frequency ``omega``, decay rate
+    ``sigma``): its two roots multiply to ``|z|^2 = c / a`` with ``a, c = 1/k^2 + (1 - theta)
+    Omega^2 / 2 +- sigma / k``, so high modes decay more slowly than ``sigma`` says."""
+    k = 1.0 / step_rate
+    common = 1.0 / k ** 2 + 0.5 * (1.0 - theta) * omega ** 2
+    per_step = -0.5 * np.log((common - sigma / k) / (common + sigma / k))
+    return math.log(1000.0) / (per_step * step_rate)
 
 
 def mode_errors_cents(parameters: Any = None, *, sample_rate: float = 48000.0, count: int = 8) -> np.ndarray:
@@ -319,6 +354,8 @@ def mode_errors_cents(parameters: Any = None, *, sample_rate: float = 48000.0, c
 
     p = resolve_parameters(MODEL, parameters)
     found = fd_modes(p, sample_rate=sample_rate, count=count)["frequency_hz"]
+    if found.size == 0:
+        return found
     bar = dict(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
                thickness_m=p.thickness_m, bc=p.bc)
     if p.profile == "uniform":

@@ -30,12 +30,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import check_number, check_whole
 from ..errors import ParameterError
 from .boundary import BOUNDARY_CONDITIONS
 from .profiles import Profile
 
 MIN_POINTS = 8
-MAX_POINTS = 20000
+MAX_POINTS = 1000
+"""Beyond this the eigenvalues' rounding (the operator's condition grows as points^4) costs
+more than the finer grid gains."""
+MAX_EXTRAPOLATED_POINTS = 300
 
 
 def _ends(bc: str) -> tuple[str, str]:
@@ -114,8 +118,12 @@ def bar_grid(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: float,
     (10, 0.3078)
     """
     left, right = _ends(bc)
-    if not MIN_POINTS <= points <= MAX_POINTS:
-        raise ParameterError(f"parameter points = {points!r} is out of range; allowed: {MIN_POINTS} to {MAX_POINTS}")
+    points = check_whole("points", points, "nodes", minimum=MIN_POINTS, maximum=MAX_POINTS)
+    youngs_modulus_pa = check_number("youngs_modulus_pa", youngs_modulus_pa, "Pa", minimum=0.0, minimum_exclusive=True)
+    density_kg_m3 = check_number("density_kg_m3", density_kg_m3, "kg/m^3", minimum=0.0, minimum_exclusive=True)
+    length_m = check_number("length_m", length_m, "m", minimum=0.0, minimum_exclusive=True)
+    thickness_m = check_number("thickness_m", thickness_m, "m", minimum=0.0, minimum_exclusive=True)
+    width_m = check_number("width_m", width_m, "m", minimum=0.0, minimum_exclusive=True)
     profile = profile or Profile()
     n = points
     dx = length_m / (n - 1)
@@ -187,6 +195,10 @@ def grid_modes(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: floa
     >>> (f / f[0]).round(4).tolist()
     [1.0, 2.7565, 5.4039]
     """
+    count = check_whole("count", count, "modes", minimum=1)
+    if extrapolate and not MIN_POINTS <= points <= MAX_EXTRAPOLATED_POINTS:
+        raise ParameterError(f"parameter points = {points!r} is out of range; allowed: {MIN_POINTS} to "
+                             f"{MAX_EXTRAPOLATED_POINTS} with extrapolation (the finer grid doubles them)")
     bar = dict(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3, length_m=length_m,
                thickness_m=thickness_m, width_m=width_m, bc=bc, profile=profile)
     coarse = grid_eigen(bar_grid(points=points, **bar), count)[0] / (2.0 * math.pi)

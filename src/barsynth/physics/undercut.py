@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import check_whole
 from ..errors import ParameterError
 from .profiles import THINNEST, Profile
 
@@ -53,6 +54,7 @@ def tune_undercut(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: f
 
     from .grid import grid_modes
 
+    count = check_whole("count", count, "modes", minimum=2, maximum=24)
     if not (isinstance(target_ratio, (int, float)) and math.isfinite(target_ratio)):
         raise ParameterError(f"parameter target_ratio = {target_ratio!r} is not a number; allowed: above 2.756")
     bar = dict(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3, length_m=length_m,
