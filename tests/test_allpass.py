@@ -25,7 +25,8 @@ from barsynth.analysis import measure_partial
 from barsynth.dsp.mallet import hertz_stiffness, mallet_pulse
 from barsynth.errors import ParameterError
 from barsynth.models import get_model
-from barsynth.models.allpass import HARDEST_CONTACT_S, SOFTEST_CONTACT_S, AllpassVoice
+from barsynth.models.allpass import AllpassVoice
+from barsynth.models.shared import mallet_contact_s
 from barsynth.physics import bar_frequencies
 
 MODEL = get_model("allpass")
@@ -93,7 +94,7 @@ def test_a_strike_rings_each_mode_as_describe_and_the_mallet_say():
     p = {"strike_position": 0.3, "pickup_position": 0.62, "mallet_hardness": 0.6, "mallet_velocity_m_s": 1.5,
          "mallet_mass_kg": 0.02, "q": 500.0}
     x = raw(p, 0.8)
-    contact = SOFTEST_CONTACT_S * (HARDEST_CONTACT_S / SOFTEST_CONTACT_S) ** 0.6
+    contact = mallet_contact_s(0.6)
     pulse = mallet_pulse(mass_kg=0.02, velocity_m_s=1.5, stiffness=hertz_stiffness(contact, 0.02), sample_rate=RATE)
     n = np.arange(pulse.size)
     skip = int(0.03 * RATE)

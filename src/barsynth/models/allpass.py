@@ -63,10 +63,9 @@ from ..errors import ParameterError
 from ..parameters import CHOICE, INT, Parameter, ParameterTable
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate, check_seed, render_voice
+from .shared import bar_size_parameters, level_parameter, mallet_contact_s, mallet_parameters
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "clamped-clamped", "pinned-pinned", "clamped-pinned")
-SOFTEST_CONTACT_S = 0.010  # mallet_hardness 0, as banded
-HARDEST_CONTACT_S = 0.0002  # mallet_hardness 1
 FADE_S = 0.010  # a replaced waveguide that has rung long enough fades out over this time
 MAX_RETIRED = 3  # replaced waveguides still ringing at once (beyond that the oldest fades out)
 RETIRE_T60S = 2.0  # a replaced waveguide rings on for this many of its longest T60 (-120 dB)
@@ -76,11 +75,7 @@ LOWEST_FIRST_MODE_HZ = 1.0
 ALLPASS_TABLE = ParameterTable(
     "allpass",
     [
-        Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 69e9, "Young's modulus E", scale="log"),
-        Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 2700.0, "density rho", scale="log"),
-        Parameter("length_m", "m", 0.02, 3.0, 0.30, "length of the bar", scale="log"),
-        Parameter("thickness_m", "m", 0.0003, 0.1, 0.01, "thickness h (bending direction)", scale="log"),
-        Parameter("width_m", "m", 0.002, 0.5, 0.04, "width (sets the mass, so the level)", scale="log"),
+        *bar_size_parameters(),
         Parameter("bc", "", None, None, "free-free",
                   "boundary conditions: the x = 0 end first (clamped-free: clamped at 0, free at the far end)",
                   kind=CHOICE, choices=BOUNDARY_CONDITIONS),
@@ -94,14 +89,11 @@ ALLPASS_TABLE = ParameterTable(
                   kind=CHOICE, choices=("strike", "pluck")),
         Parameter("strike_position", "", 0.0, 1.0, 0.1, "where it is struck or plucked: fraction of the length"),
         Parameter("pickup_position", "", 0.0, 1.0, 0.0, "where its velocity is picked up: fraction of the length"),
-        Parameter("mallet_hardness", "", 0.0, 1.0, 0.7,
-                  "0 soft (10 ms contact at 1 m/s) to 1 hard (0.2 ms): harder = more high modes"),
-        Parameter("mallet_velocity_m_s", "m/s", 0.05, 10.0, 1.0, "how fast the mallet arrives", scale="log"),
-        Parameter("mallet_mass_kg", "kg", 0.002, 0.5, 0.03, "mass of the mallet head", scale="log"),
+        *mallet_parameters(),
         Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0,
                   "how far the strike point is held out before a pluck's release", scale="log"),
         Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log"),
-        Parameter("level_db", "dB", -60.0, 40.0, 0.0, "output gain re the pick-up velocity in m/s"),
+        level_parameter(),
     ],
 )
 
@@ -256,7 +248,7 @@ class AllpassVoice:
         """Strike or pluck now, on top of whatever still rings."""
         p = self._params
         if p.excitation == "strike":
-            contact = SOFTEST_CONTACT_S * (HARDEST_CONTACT_S / SOFTEST_CONTACT_S) ** p.mallet_hardness
+            contact = mallet_contact_s(p.mallet_hardness)
             pulse = mallet_pulse(mass_kg=p.mallet_mass_kg, velocity_m_s=p.mallet_velocity_m_s,
                                  stiffness=hertz_stiffness(contact, p.mallet_mass_kg), sample_rate=self.sample_rate)
             self._add_force(pulse, 0.0)
