@@ -393,7 +393,7 @@ def _serve(*args):
     from barsynth.cli import main
     from barsynth.listening import server
 
-    with mock.patch.object(server._QuietStop, "run", side_effect=AssertionError("the server started")):
+    with mock.patch.object(server.QuietStop, "run", side_effect=AssertionError("the server started")):
         return CliRunner().invoke(main, ["listen", "serve", *map(str, args)])
 
 

@@ -19,14 +19,12 @@ HTTP API (JSON; errors are ``{"error": "one line"}`` with a 4xx status):
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import re
-import socket
 import sqlite3
 import sys
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -36,21 +34,15 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 
-from ..errors import BarsynthError
+from ..webserver import (LOCAL_HOSTS, SECURITY_HEADERS, QuietStop, Refused, allowed_hosts, host_name,
+                         listen_socket, read_json, shown_address)
 from .config import ListeningTest, load_test
-from .session import Refused, Session, fingerprint, make_plan
+from .session import Session, fingerprint, make_plan
 from .store import ResultsStore
 
 COOKIE = "barsynth_session"
-LOCAL_HOSTS = ("127.0.0.1", "localhost", "[::1]")
-WILDCARD_HOSTS = ("", "0.0.0.0", "::")
 MAX_BODY_BYTES = 64 * 1024
 _STATIC = {"app.js": "text/javascript; charset=utf-8", "style.css": "text/css; charset=utf-8"}
-_SECURITY_HEADERS = {
-    "Content-Security-Policy": "default-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'",
-    "X-Content-Type-Options": "nosniff",
-    "Referrer-Policy": "no-referrer",
-}
 
 
 def clip_wav(samples: Any, sample_rate: float) -> bytes:
@@ -95,7 +87,7 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None,
 
     @app.middleware("http")
     async def headers(request: Request, call_next: Callable) -> Any:
-        if hosts is not None and _host_name(request.headers.get("host", "")) not in hosts:
+        if hosts is not None and host_name(request.headers.get("host", "")) not in hosts:
             return JSONResponse({"error": "unknown Host; this test answers only at its own address"},
                                 status_code=400)
         length = request.headers.get("content-length", "0")
@@ -103,7 +95,7 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None,
             return JSONResponse({"error": f"request body too large; allowed: up to {MAX_BODY_BYTES} bytes"},
                                 status_code=413)
         response = await call_next(request)
-        response.headers.update(_SECURITY_HEADERS)
+        response.headers.update(SECURITY_HEADERS)
         return response
 
     def session_of(request: Request) -> Session:
@@ -114,17 +106,7 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None,
         return Session(test, store, participant, json.loads(plan))
 
     async def body(request: Request) -> Any:
-        if request.headers.get("content-type", "").split(";")[0].strip() != "application/json":
-            raise Refused(415, "send the answer as application/json")
-        raw = bytearray()
-        async for chunk in request.stream():  # a chunked body has no length to check first
-            raw += chunk
-            if len(raw) > MAX_BODY_BYTES:
-                raise Refused(413, f"request body too large; allowed: up to {MAX_BODY_BYTES} bytes")
-        try:
-            return json.loads(bytes(raw) or b"null", parse_constant=_no_constants)
-        except (ValueError, RecursionError):
-            raise Refused(400, "the request body is not valid JSON") from None
+        return await read_json(request, MAX_BODY_BYTES)
 
     def state(session: Session, status: int = 200) -> JSONResponse:
         return JSONResponse(session.state(), status_code=status, headers={"Cache-Control": "no-store"})
@@ -213,48 +195,6 @@ def _ranged(data: bytes, wanted: str | None) -> Response:
                     headers={**headers, "Content-Range": f"bytes {start}-{end}/{size}"})
 
 
-def _host_name(header: str) -> str:
-    """The host part of a Host header, lower case: 'localhost', '127.0.0.1', '[::1]'."""
-    header = header.strip().lower()
-    if header.startswith("["):
-        return header[:header.find("]") + 1]
-    return header.rsplit(":", 1)[0] if header.count(":") == 1 else header
-
-
-def _no_constants(name: str) -> None:
-    raise ValueError(f"{name} is not a number JSON allows")
-
-
-class _QuietStop(uvicorn.Server):
-    """Ctrl-C or SIGTERM ends the test server normally (exit 0) once it has shut down,
-    instead of uvicorn re-raising the signal after its graceful shutdown."""
-
-    @contextlib.contextmanager
-    def capture_signals(self) -> Iterator[None]:
-        with super().capture_signals():
-            yield
-            getattr(self, "_captured_signals", []).clear()
-
-
-def listen_socket(host: str, port: int) -> socket.socket:
-    """A bound TCP socket (port 0 picks a free one); one clear error if it cannot be had."""
-    if not 0 <= port <= 65535:
-        raise BarsynthError(f"parameter port = {port} is out of range; allowed: 0 to 65535")
-    try:
-        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
-        sock = socket.socket(family, kind, proto)
-    except (OSError, UnicodeError) as exc:
-        raise BarsynthError(f"cannot listen on {host}:{port}: {getattr(exc, 'strerror', None) or exc}") from None
-    try:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        sock.bind(address)
-        sock.listen(128)  # connections wait in the backlog until uvicorn takes them
-    except OSError as exc:
-        sock.close()
-        raise BarsynthError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
-    return sock
-
-
 def serve(config: str | Path, results: str | Path, *, host: str = "127.0.0.1", port: int = 8000,
           echo: Callable[[str], None] = print) -> None:
     """Load the test (every clip checked and rendered first), then serve it until stopped."""
@@ -262,17 +202,14 @@ def serve(config: str | Path, results: str | Path, *, host: str = "127.0.0.1", p
     sock = listen_socket(host, port)
     try:
         with ResultsStore(results) as store:
-            named = f"[{host}]" if ":" in host else host
-            app = create_app(test, store, allowed_hosts=None if host in WILDCARD_HOSTS else (*LOCAL_HOSTS, named))
-            bound_host, bound_port = sock.getsockname()[:2]
-            shown = f"[{bound_host}]" if ":" in bound_host else bound_host
-            echo(f"barsynth listen: {test.title!r} at http://{shown}:{bound_port}/ ; answers go to {results} "
+            app = create_app(test, store, allowed_hosts=allowed_hosts(host))
+            echo(f"barsynth listen: {test.title!r} at {shown_address(sock)} ; answers go to {results} "
                  "(Ctrl-C stops)")
-            if bound_host not in ("127.0.0.1", "::1"):
+            if sock.getsockname()[0] not in ("127.0.0.1", "::1"):
                 echo("barsynth listen: warning: listening beyond this machine; anyone who can reach it can "
                      "take the test")
             sys.stdout.flush()
-            server = _QuietStop(uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off"))
+            server = QuietStop(uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off"))
             server.run(sockets=[sock])
     finally:
         sock.close()

@@ -19,20 +19,12 @@ import random
 import secrets
 from typing import Any
 
-from ..errors import BarsynthError
+from ..webserver import Refused
 from .config import ListeningTest
 from .store import RATING_MAX, AnswerRefused, ResultsStore
 
 MAX_COMMENT_CHARS = 2000
 DIFFICULTY_LABELS = ("very difficult", "difficult", "neither", "easy", "very easy")  # 1..5
-
-
-class Refused(BarsynthError):
-    """A request the server turns down; ``status`` is its HTTP status (4xx)."""
-
-    def __init__(self, status: int, message: str):
-        super().__init__(message)
-        self.status = status
 
 
 def fingerprint(test: ListeningTest, audio: dict[str, bytes]) -> str:
