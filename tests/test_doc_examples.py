@@ -23,6 +23,7 @@ MODULES = [
     "barsynth.physics.undercut",
     "barsynth.dsp.bow_stroke",
     "barsynth.analysis.bowing",
+    "barsynth.studio.presets_file",
     "barsynth.analysis.partials",
     "barsynth.analysis.plots",
     "barsynth.parameters",

@@ -42,11 +42,31 @@ def host_name(header: str) -> str:
     return header.rsplit(":", 1)[0] if header.count(":") == 1 else header
 
 
-def allowed_hosts(host: str) -> tuple[str, ...] | None:
+def hosts_for(host: str) -> tuple[str, ...] | None:
     """The Host names a server bound to ``host`` answers to (None: any, for a wildcard address)."""
     if host in WILDCARD_HOSTS:
         return None
     return (*LOCAL_HOSTS, f"[{host}]" if ":" in host else host)
+
+
+def guard(app: Any, allowed: Any, limit: int, who: str) -> None:
+    """Add the middleware every barsynth server has: refuse a foreign Host (DNS rebinding)
+    and a declared body over ``limit`` bytes, and add the security headers. ``allowed``:
+    the Host names to answer to (None: any); ``who``: 'this test', 'the studio'."""
+    from fastapi.responses import JSONResponse
+
+    hosts = None if allowed is None else {h.lower() for h in allowed}
+
+    @app.middleware("http")
+    async def headers(request: Any, call_next: Any) -> Any:
+        if hosts is not None and host_name(request.headers.get("host", "")) not in hosts:
+            return JSONResponse({"error": f"unknown Host; {who} answers only at its own address"}, status_code=400)
+        length = request.headers.get("content-length", "0")
+        if not length.isdigit() or int(length) > limit:
+            return JSONResponse({"error": f"request body too large; allowed: up to {limit} bytes"}, status_code=413)
+        response = await call_next(request)
+        response.headers.update(SECURITY_HEADERS)
+        return response
 
 
 def no_constants(name: str) -> None:

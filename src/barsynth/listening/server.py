@@ -34,8 +34,8 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 
-from ..webserver import (LOCAL_HOSTS, SECURITY_HEADERS, QuietStop, Refused, allowed_hosts, host_name,
-                         listen_socket, read_json, shown_address)
+from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, hosts_for, listen_socket, read_json,
+                         shown_address)
 from .config import ListeningTest, load_test
 from .session import Session, fingerprint, make_plan
 from .store import ResultsStore
@@ -63,7 +63,6 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None,
     """
     audio = {clip_id: clip_wav(clip.samples, clip.sample_rate) for clip_id, clip in test.clips.items()}
     store.bind_test(fingerprint(test, audio))
-    hosts = None if allowed_hosts is None else {h.lower() for h in allowed_hosts}
     web = resources.files("barsynth.listening") / "web"
     pages = {name: (web / name).read_bytes() for name in ("index.html", *_STATIC)}
 
@@ -85,18 +84,7 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None,
         return JSONResponse({"error": f"the results file could not be written ({exc}); nothing was stored, "
                                       "try again"}, status_code=503, headers={"Cache-Control": "no-store"})
 
-    @app.middleware("http")
-    async def headers(request: Request, call_next: Callable) -> Any:
-        if hosts is not None and host_name(request.headers.get("host", "")) not in hosts:
-            return JSONResponse({"error": "unknown Host; this test answers only at its own address"},
-                                status_code=400)
-        length = request.headers.get("content-length", "0")
-        if not length.isdigit() or int(length) > MAX_BODY_BYTES:
-            return JSONResponse({"error": f"request body too large; allowed: up to {MAX_BODY_BYTES} bytes"},
-                                status_code=413)
-        response = await call_next(request)
-        response.headers.update(SECURITY_HEADERS)
-        return response
+    guard(app, allowed_hosts, MAX_BODY_BYTES, "this test")
 
     def session_of(request: Request) -> Session:
         participant, _, token = request.cookies.get(COOKIE, "").partition(".")
@@ -202,7 +190,7 @@ def serve(config: str | Path, results: str | Path, *, host: str = "127.0.0.1", p
     sock = listen_socket(host, port)
     try:
         with ResultsStore(results) as store:
-            app = create_app(test, store, allowed_hosts=allowed_hosts(host))
+            app = create_app(test, store, allowed_hosts=hosts_for(host))
             echo(f"barsynth listen: {test.title!r} at {shown_address(sock)} ; answers go to {results} "
                  "(Ctrl-C stops)")
             if sock.getsockname()[0] not in ("127.0.0.1", "::1"):

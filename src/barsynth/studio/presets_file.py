@@ -1,0 +1,41 @@
+"""Write a model's settings as a preset file (TOML), the same shape as the shipped presets."""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+
+def _value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ValueError(f"{value!r} cannot be written to a preset")
+        return repr(value)
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    return json.dumps(str(value), ensure_ascii=False)  # a TOML basic string
+
+
+def preset_toml(parameters: dict[str, Any], *, description: str, source: str = "made in barsynth studio") -> str:
+    """The text of a preset file: ``[preset]`` (description, source) and ``[parameters]``.
+
+    Examples
+    --------
+    >>> print(preset_toml({"q": 300.0, "mode_ratios": (1.0, 4.0), "shape": "bar"}, description="mine"), end="")
+    [preset]
+    description = "mine"
+    source = "made in barsynth studio"
+    <BLANKLINE>
+    [parameters]
+    q = 300.0
+    mode_ratios = [1.0, 4.0]
+    shape = "bar"
+    """
+    lines = ["[preset]", f"description = {_value(description)}", f"source = {_value(source)}", "", "[parameters]"]
+    lines += [f"{name} = {_value(value)}" for name, value in parameters.items()]
+    return "\n".join(lines) + "\n"

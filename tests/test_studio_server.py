@@ -1,0 +1,98 @@
+"""The studio's HTTP API (issue 6, part 1) over real HTTP semantics (FastAPI's TestClient)."""
+
+from __future__ import annotations
+
+import io
+import json
+import tomllib
+
+import numpy as np
+import pytest
+import soundfile
+from fastapi.testclient import TestClient
+
+from barsynth.models import get_model, model_names
+from barsynth.studio.server import MAX_BODY_BYTES, create_app
+
+
+@pytest.fixture(scope="module")
+def client():
+    return TestClient(create_app(), base_url="http://127.0.0.1:8000")
+
+
+def test_every_model_comes_with_its_table_and_presets(client):
+    listed = client.get("/api/models").json()["models"]
+    assert [m["name"] for m in listed] == list(model_names())
+    for entry in listed:
+        model = get_model(entry["name"])
+        assert entry["parameters"] == json.loads(json.dumps(model.table.to_json()))
+        assert entry["summary"] == model.summary
+    banded = next(m for m in listed if m["name"] == "banded")
+    assert {"marimba", "bowl"} <= set(banded["presets"])
+
+
+def test_a_preset_comes_resolved(client):
+    r = client.get("/api/models/banded/presets/marimba")
+    assert r.status_code == 200
+    body = r.json()
+    assert body["parameters"]["mode_ratios"] == [1.0, 4.0, 10.0] and "marimba" in body["description"]
+    assert set(body["parameters"]) == set(get_model("banded").table.names)
+
+
+def test_a_render_is_a_wav_of_the_asked_sound(client):
+    r = client.post("/api/render", json={"model": "banded", "parameters": {"tuning": "ratios", "frequency_hz": 330},
+                                         "duration_s": 1.0, "sample_rate": 44100})
+    assert r.status_code == 200 and r.headers["content-type"] == "audio/wav"
+    x, rate = soundfile.read(io.BytesIO(r.content))
+    assert rate == 44100 and x.size == 44100 and 0.85 < np.max(np.abs(x)) < 0.9
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size)))
+    assert np.fft.rfftfreq(x.size, 1 / rate)[np.argmax(spectrum)] == pytest.approx(330.0, abs=1.0)
+
+
+def test_describe_gives_modes_and_a_reference_models_errors(client):
+    r = client.post("/api/describe", json={"model": "fd", "parameters": {"points": 60}, "sample_rate": 48000})
+    modes = r.json()["modes"]
+    assert r.status_code == 200 and len(modes) > 4
+    assert all(m["error_cents"] < 0 for m in modes)
+    r = client.post("/api/describe", json={"model": "twang", "parameters": {}})
+    assert r.status_code == 200 and "error_cents" not in r.json()["modes"][0]
+
+
+def test_a_preset_file_reads_back_as_the_same_settings(client):
+    settings = {"tuning": "ratios", "frequency_hz": 261.6, "mode_ratios": [1, 3.9, 9.2], "shape": "bar"}
+    r = client.post("/api/preset-file", json={"model": "banded", "parameters": settings, "description": "my bar"})
+    assert r.status_code == 200 and "attachment" in r.headers["content-disposition"]
+    doc = tomllib.loads(r.text)
+    assert doc["preset"]["description"] == "my bar"
+    table = get_model("banded").table
+    assert table.as_dict(table.resolve(doc["parameters"])) == table.as_dict(table.resolve(settings))
+
+
+@pytest.mark.parametrize("path,body,status,needle", [
+    ("/api/render", {"model": "banded", "parameters": {"q": 1e9}}, 422, "parameter q = 1000000000.0 is out of range"),
+    ("/api/render", {"model": "nope"}, 404, "unknown model 'nope'"),
+    ("/api/render", {"model": "banded", "duration_s": 3600}, 422, "duration_s = 3600 is out of range; allowed: 0.01 to 20 s"),
+    ("/api/render", {"model": "banded", "sample_rate": 1e6}, 422, "sample_rate = 1000000.0 is not allowed"),
+    ("/api/render", {"model": "banded", "volume": 11}, 422, "unknown field 'volume'"),
+    ("/api/render", {"parameters": {}}, 422, "missing model"),
+    ("/api/render", [1, 2], 422, "must be a JSON object"),
+    ("/api/describe", {"model": "banded", "parameters": {"excitation": "kick"}}, 422, "parameter excitation = 'kick'"),
+    ("/api/describe", {"model": "banded", "parameters": "loud"}, 422, "parameters must be a JSON object"),
+    ("/api/preset-file", {"model": "fd", "parameters": {}, "description": ""}, 422, "description must be text"),
+])
+def test_bad_requests_get_one_line_and_the_server_keeps_serving(client, path, body, status, needle):
+    r = client.post(path, json=body)
+    assert r.status_code == status and needle in r.json()["error"], r.text
+    assert "\n" not in r.json()["error"]
+    assert client.get("/api/health").json() == {"ok": True}
+
+
+def test_garbage_bodies_and_foreign_hosts_are_refused(client):
+    assert client.post("/api/render", content=b"{not json", headers={"content-type": "application/json"}).status_code == 400
+    assert client.post("/api/render", content=b"NaN", headers={"content-type": "application/json"}).status_code == 400
+    assert client.post("/api/render", content=b"{}", headers={"content-type": "text/plain"}).status_code == 415
+    big = b"[" + b"1," * MAX_BODY_BYTES + b"1]"
+    assert client.post("/api/render", content=big, headers={"content-type": "application/json"}).status_code == 413
+    assert client.get("/api/models/banded/presets/nothing").status_code == 404
+    assert client.get("/api/health", headers={"host": "evil.example"}).status_code == 400
+    assert client.get("/api/health").json() == {"ok": True}
