@@ -17,11 +17,9 @@ Targets on one core (issue 4): struck 4-mode bar >= 1000x, bowed 4-mode bar
 from __future__ import annotations
 
 import argparse
-import time
 
-import numpy as np
+from real_time import real_time
 
-from barsynth.models import get_model
 from barsynth.presets import preset_parameters
 
 SAMPLE_RATE = 44_100
@@ -32,24 +30,14 @@ CASES = (("struck 4-mode bar", "uniform-bar", {}, 1000.0),
          ("struck 12-mode bowl", "bowl", {}, 350.0))
 
 
-def measure(preset: str, changes: dict, repeat: int) -> tuple[float, float]:
-    model = get_model("banded")
-    parameters = {**preset_parameters("banded", preset), **changes}
-    model.render(parameters, duration_s=0.1, sample_rate=SAMPLE_RATE)  # compile / load the kernels
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        model.render(parameters, duration_s=DURATION_S, sample_rate=SAMPLE_RATE)
-        times.append(time.perf_counter() - start)
-    return DURATION_S / min(times), DURATION_S / float(np.median(times))
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=15)
     args = parser.parse_args()
     for label, preset, changes, target in CASES:
-        best, median = measure(preset, changes, args.repeat)
+        parameters = {**preset_parameters("banded", preset), **changes}
+        best, median = real_time("banded", parameters, duration_s=DURATION_S, sample_rate=SAMPLE_RATE,
+                                 repeat=args.repeat)
         verdict = "meets" if best >= target else "MISSES"
         print(f"{label:<22} {best:7.0f}x real-time best, {median:7.0f}x median "
               f"(target {target:.0f}x: {verdict})")

@@ -17,11 +17,8 @@ Target on one core (issue 5): struck >= 20x real-time (one step per sample).
 from __future__ import annotations
 
 import argparse
-import time
 
-import numpy as np
-
-from barsynth.models import get_model
+from real_time import real_time
 
 SAMPLE_RATE = 44_100
 DURATION_S = 2.0
@@ -33,24 +30,13 @@ CASES = (("struck, 100 points", ONE_STEP, 20.0),
          ("struck, 100 points, 4 steps", {"oversampling": 4}, None))
 
 
-def measure(changes: dict, repeat: int) -> tuple[float, float]:
-    model = get_model("fd")
-    parameters = {"points": 100, **changes}
-    model.render(parameters, duration_s=0.05, sample_rate=SAMPLE_RATE)  # compile / load the kernels
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        model.render(parameters, duration_s=DURATION_S, sample_rate=SAMPLE_RATE)
-        times.append(time.perf_counter() - start)
-    return DURATION_S / min(times), DURATION_S / float(np.median(times))
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=9)
     args = parser.parse_args()
     for label, changes, target in CASES:
-        best, median = measure(changes, args.repeat)
+        best, median = real_time("fd", {"points": 100, **changes}, duration_s=DURATION_S,
+                                 sample_rate=SAMPLE_RATE, repeat=args.repeat)
         verdict = "" if target is None else f" (target {target:.0f}x: {'meets' if best >= target else 'MISSES'})"
         print(f"{label:<30} {best:6.1f}x real-time best, {median:6.1f}x median{verdict}")
 

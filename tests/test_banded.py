@@ -18,6 +18,7 @@ from barsynth.models.banded import BandedVoice
 from barsynth.models.shared import HARDEST_CONTACT_S, SOFTEST_CONTACT_S
 from barsynth.physics import bar_frequencies, mode_shape
 from barsynth.presets import preset_names, preset_parameters
+from streaming import play
 
 MODEL = get_model("banded")
 
@@ -144,13 +145,7 @@ def test_blocks_equal_the_offline_render(block):
     rate = 48000
     p = preset_parameters("banded", "bowl")
     whole = raw(p, 0.5, rate)
-    voice = BandedVoice(p, sample_rate=rate)
-    voice.trigger()
-    pieces, left = [], whole.size
-    while left:
-        pieces.append(voice.process(min(block, left), dtype=np.float64))
-        left -= pieces[-1].size
-    assert np.array_equal(np.concatenate(pieces), whole)
+    assert np.array_equal(play(BandedVoice(p, sample_rate=rate), {0: ("trigger", {})}, whole.size, block), whole)
 
 
 def test_modes_above_a_quarter_of_the_sample_rate_are_muted_not_folded():

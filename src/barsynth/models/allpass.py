@@ -58,12 +58,11 @@ import numpy as np
 
 from ..dsp import allpass_kernel as K
 from ..dsp.allpass_chain import AllpassDesign, allpass_design
-from ..dsp.mallet import hertz_stiffness, mallet_pulse, release_ramp
 from ..errors import ParameterError
 from ..parameters import CHOICE, INT, Parameter, ParameterTable
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate, check_seed, render_voice
-from .shared import bar_size_parameters, level_parameter, mallet_contact_s, mallet_parameters
+from .shared import add_force, bar_size_parameters, level_parameter, mallet_force, mallet_parameters, pluck_force
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "clamped-clamped", "pinned-pinned", "clamped-pinned")
 FADE_S = 0.010  # a replaced waveguide that has rung long enough fades out over this time
@@ -248,14 +247,10 @@ class AllpassVoice:
         """Strike or pluck now, on top of whatever still rings."""
         p = self._params
         if p.excitation == "strike":
-            contact = mallet_contact_s(p.mallet_hardness)
-            pulse = mallet_pulse(mass_kg=p.mallet_mass_kg, velocity_m_s=p.mallet_velocity_m_s,
-                                 stiffness=hertz_stiffness(contact, p.mallet_mass_kg), sample_rate=self.sample_rate)
-            self._add_force(pulse, 0.0)
+            change = mallet_force(p, self.sample_rate), 0.0
         else:  # pluck: the force that holds the strike point out, then let go
-            compliance = self._compliance()  # 0 at a clamped or pinned end: nothing to pluck
-            force = p.pluck_displacement_mm * 1e-3 / compliance if compliance > 0.0 else 0.0
-            self._add_force(release_ramp(-force, p.release_time_ms * 1e-3, self.sample_rate), -force)
+            change = pluck_force(p, self._compliance(), self.sample_rate)  # nothing at a clamped or pinned end
+        self._pending, self._tail = add_force(self._pending, self._tail, *change)
 
     def _compliance(self) -> float:
         """Static compliance of the bar at the strike point (m/N), from its fitted modes."""
@@ -265,15 +260,6 @@ class AllpassVoice:
         mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
         return sum(float(mode_shape(p.bc, m.number, p.strike_position)) ** 2
                    / (mass * (2.0 * math.pi * m.physics_hz) ** 2) for m in modes)
-
-    def _add_force(self, change: np.ndarray, held: float) -> None:
-        """Add a force change to what is pending; ``held`` stays on after it (a release)."""
-        size = max(self._pending.size, change.size)
-        pending = np.full(size, self._tail)
-        pending[:self._pending.size] = self._pending
-        pending[:change.size] += change
-        pending[change.size:] += held
-        self._pending, self._tail = pending, self._tail + held
 
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples: velocity at the pick-up (m/s) times the level."""

@@ -31,13 +31,12 @@ import numpy as np
 
 from ..dsp import banded_kernel as K
 from ..dsp.banded import design_loop
-from ..dsp.mallet import hertz_stiffness, mallet_pulse, release_ramp
 from ..errors import ParameterError
 from ..parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate
-from .shared import (BarModel, BowedBarVoice, bar_size_parameters, bow_parameters, level_parameter,
-                     mallet_contact_s, mallet_parameters)
+from .shared import (BarModel, BowedBarVoice, add_force, bar_size_parameters, bow_parameters, level_parameter,
+                     mallet_force, mallet_parameters, pluck_force)
 
 MAX_MODES = 24
 MIN_Q = 3.0  # below this a mode is not a ringing loop (see dsp.banded)
@@ -211,31 +210,18 @@ class BandedVoice(BowedBarVoice):
                 states[row] = self._states[found[0]]
         self._buffers, self._states, self._position = buffers, states, position
 
-    def _add_force(self, change: np.ndarray, held: float) -> None:
-        """Add a force change to what is pending; ``held`` stays on after it (a release)."""
-        size = max(self._pending.size, change.size)
-        pending = np.full(size, self._tail)
-        pending[:self._pending.size] = self._pending
-        pending[:change.size] += change
-        pending[change.size:] += held
-        self._pending, self._tail = pending, self._tail + held
-
     def trigger(self) -> None:
         """Strike, start a bow stroke, or pluck now, on top of whatever still rings."""
         p = self._params
         if p.excitation == "bow":
             self._start_stroke()
         elif p.excitation == "strike":
-            stiffness = hertz_stiffness(mallet_contact_s(p.mallet_hardness), p.mallet_mass_kg)
-            pulse = mallet_pulse(mass_kg=p.mallet_mass_kg, velocity_m_s=p.mallet_velocity_m_s,
-                                 stiffness=stiffness, sample_rate=self.sample_rate)
-            self._add_force(pulse, 0.0)
+            self._pending, self._tail = add_force(self._pending, self._tail, mallet_force(p, self.sample_rate), 0.0)
         else:  # pluck: the force that holds the strike point out, then let go
             omega = 2.0 * math.pi * self._freqs
             compliance = float(np.sum(self._strike_shape ** 2 / (self._mass * omega ** 2)))  # m/N
-            force = p.pluck_displacement_mm * 1e-3 / compliance if compliance > 0 else 0.0
-            ramp = release_ramp(-force, p.release_time_ms * 1e-3, self.sample_rate)
-            self._add_force(ramp, -force)
+            self._pending, self._tail = add_force(self._pending, self._tail,
+                                                  *pluck_force(p, compliance, self.sample_rate))
 
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples: velocity at the pick-up (m/s) times the level."""

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..dsp import fd_kernel as K
-from ..dsp.mallet import HERTZ_EXPONENT, hertz_stiffness
+from ..dsp.mallet import HERTZ_EXPONENT
 from ..errors import ParameterError
 from ..parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
 from ..physics.boundary import BOUNDARY_CONDITIONS
@@ -40,7 +40,7 @@ from ..physics.profiles import PROFILE_KINDS, THINNEST, Profile
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate
 from .shared import (BarModel, BowedBarVoice, bar_size_parameters, bow_parameters, level_parameter,
-                     mallet_contact_s, mallet_parameters)
+                     mallet_parameters, mallet_stiffness)
 
 MAX_DESCRIBED = 24
 
@@ -212,7 +212,7 @@ class FdVoice(BowedBarVoice):
         bow_response = K.solve(bow_at, factors)
         constants = np.zeros(K.N_CONSTANTS)
         constants[K.K_MALLET_MASS] = p.mallet_mass_kg
-        constants[K.K_MALLET_STIFFNESS] = hertz_stiffness(mallet_contact_s(p.mallet_hardness), p.mallet_mass_kg)
+        constants[K.K_MALLET_STIFFNESS] = mallet_stiffness(p)
         constants[K.K_MALLET_EXPONENT] = HERTZ_EXPONENT
         constants[K.K_SAMPLE_RATE] = rate
         constants[K.K_NEWTON] = 1.0 if p.bow_solver == "newton" else 0.0

@@ -47,6 +47,42 @@ def mallet_contact_s(hardness: float) -> float:
     return SOFTEST_CONTACT_S * (HARDEST_CONTACT_S / SOFTEST_CONTACT_S) ** hardness
 
 
+def mallet_stiffness(p: Any) -> float:
+    """The Hertzian contact stiffness (N/m^p) of the mallet ``p.mallet_hardness`` and ``p.mallet_mass_kg`` describe."""
+    from ..dsp.mallet import hertz_stiffness
+
+    return hertz_stiffness(mallet_contact_s(p.mallet_hardness), p.mallet_mass_kg)
+
+
+def mallet_force(p: Any, sample_rate: float) -> np.ndarray:
+    """The force (N per sample) of the mallet bouncing off: the strike of the force-driven models."""
+    from ..dsp.mallet import mallet_pulse
+
+    return mallet_pulse(mass_kg=p.mallet_mass_kg, velocity_m_s=p.mallet_velocity_m_s, stiffness=mallet_stiffness(p),
+                        sample_rate=sample_rate)
+
+
+def pluck_force(p: Any, compliance_m_n: float, sample_rate: float) -> tuple[np.ndarray, float]:
+    """A pluck as a force change: the ramp that lets go of the force holding the strike point
+    ``p.pluck_displacement_mm`` out (over ``p.release_time_ms``), and the change that stays after it.
+    A point that does not give (``compliance_m_n`` 0) has nothing to pluck."""
+    from ..dsp.mallet import release_ramp
+
+    force = p.pluck_displacement_mm * 1e-3 / compliance_m_n if compliance_m_n > 0.0 else 0.0
+    return release_ramp(-force, p.release_time_ms * 1e-3, sample_rate), -force
+
+
+def add_force(pending: np.ndarray, held: float, change: np.ndarray, change_held: float) -> tuple[np.ndarray, float]:
+    """Add a force change to a force still to come (``pending`` per sample, then ``held``):
+    ``change`` per sample, then ``change_held`` for good. Returns the new ``(pending, held)``."""
+    size = max(pending.size, change.size)
+    total = np.full(size, held)
+    total[:pending.size] = pending
+    total[:change.size] += change
+    total[change.size:] += change_held
+    return total, held + change_held
+
+
 def bow_parameters(*, position: float = 0.0, velocity_m_s: float = 0.3, force_n: float = 3.0) -> list[Parameter]:
     return [
         Parameter("bow_position", "", 0.0, 1.0, position, "where the bow touches, as strike_position"),
