@@ -225,7 +225,10 @@ def test_the_steady_spectrum_is_harmonic_and_strongest_near_the_modes():
 def test_a_harder_bow_brings_a_brighter_tone():
     """Spec 3.1: a larger force gives more high-frequency content (same velocity, in the region)."""
     def above_the_fundamental_db(force):
-        x = render(bowed(bow_duration_s=3.0, bow_force_n=force, bow_velocity_m_s=0.42), 2.0)[RATE:]
+        # 0.6 m/s lies inside the region at every force here (0.42 m/s, used before, is at its
+        # lower edge at 20 N, where whether the bar sustains depends on the last bit of rounding)
+        x = render(bowed(bow_duration_s=3.0, bow_force_n=force, bow_velocity_m_s=0.6), 2.0)[RATE:]
+        assert rms(x, 0.0, 1.0) > 0.3  # sustained
         spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2
         freqs = np.fft.rfftfreq(x.size, 1 / RATE)
         return 10 * np.log10(spectrum[freqs > 800.0].sum() / spectrum.sum())  # f1 = 577 Hz
