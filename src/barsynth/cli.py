@@ -87,6 +87,7 @@ def main() -> None:
       barsynth render banded --preset vibraphone --set excitation=bow -o bowed.wav
       barsynth bow-map banded --preset vibraphone -o bow-map.png
       barsynth analyze twang.wav --json
+      barsynth studio
     """
 
 
@@ -186,16 +187,19 @@ def _model(name: str):
 
 def _resolve(model, preset: str | None, assignments: tuple[str, ...]):
     from .parameters import parse_assignments
-    from .presets import preset_parameters
+    from .presets import preset_file_parameters, preset_parameters
 
     layers = []
-    if preset is not None:
+    if preset is not None and preset.lower().endswith(".toml"):
+        layers.append(preset_file_parameters(model.name, preset))
+    elif preset is not None:
         layers.append(preset_parameters(model.name, preset))
     layers.append(parse_assignments(assignments))
     return model.table.resolve(*layers)
 
 
-_preset_option = click.option("--preset", "-p", metavar="P", help="Start from a preset (see `barsynth presets`).")
+_preset_option = click.option("--preset", "-p", metavar="P", help="Start from a preset (see `barsynth presets`), "
+                              "or from a preset file of your own (FILE.toml, as `barsynth studio` saves them).")
 _set_option = click.option("--set", "-s", "assignments", multiple=True, metavar="NAME=VALUE",
                            help="Set a parameter (repeatable; a later --set of the same name "
                                 "wins); see `barsynth params MODEL`.")
@@ -542,6 +546,20 @@ def presets(model_name: str | None) -> None:
         for preset in preset_names(name):
             info = load_preset(name, preset)["preset"]
             click.echo(f"{name:<8} {preset:<24} {info.get('description', '')}")
+
+
+@main.command()
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Address to listen on; 0.0.0.0 lets other machines use the studio.")
+@click.option("--port", default=8050, show_default=True, type=int, help="TCP port (0 picks a free one).")
+def studio(host, port):
+    """Every model in the browser: sliders that change the sound as it plays, pictures, WAV and preset downloads.
+
+    Prints the address to open; Ctrl-C stops it. See docs/studio.md.
+    """
+    from .studio.server import serve
+
+    serve(host=host, port=port, echo=click.echo)
 
 
 @main.group()

@@ -38,7 +38,7 @@ def _cascade(rows, states, lo, hi, x):  # pragma: no cover - compiled
     return x
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, nogil=True, fastmath={"contract"})
 def process(out, pending, held, gain, rows, first, delays, signs, inject, pick, anchor, buffers, states,
             position, strike_rows, strike_states, pickup_rows, pickup_states):  # pragma: no cover - compiled
     """Run the waveguide for ``out.size`` samples driven by a force (N): ``pending[t]``

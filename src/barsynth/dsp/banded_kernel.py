@@ -48,7 +48,7 @@ S_AP_Y = 5
 N_STATES = 6
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, nogil=True, fastmath={"contract"})
 def process(out, pending, held, coeffs, delays, buffers, states, position):
     """Run the bank for ``out.size`` samples driven by a force (N): ``pending[t]`` for
     the first ``pending.size`` samples, then ``held``.
@@ -110,7 +110,7 @@ def process(out, pending, held, coeffs, delays, buffers, states, position):
     position[0] = (start + n) & mask
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, nogil=True, fastmath={"contract"})
 def process_bowed(out, pending, held_force, lines, start, coeffs, delays, buffers, states, position):
     """As :func:`process` (``held_force`` is its ``held``), with a bow as well, whose
     controls are the breakpoint ``lines`` of :class:`barsynth.dsp.bow_stroke.BowControls`;

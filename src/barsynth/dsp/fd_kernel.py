@@ -197,7 +197,7 @@ def _friction(s, u_prev, at_bow, lines, x, j_speed, j_velocity, j_force, pressur
     return friction_given_width(dv, f_bow, inverse_width), j_speed, j_velocity, j_force
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, nogil=True, fastmath={"contract"})
 def process(out, u, u_prev, bands, factors, contact, bow, pickup, lines, start, scalars, constants, taps, history):
     """Advance the bar ``out.size`` output samples; ``out`` gets the pick-up velocity (m/s) x level.
 

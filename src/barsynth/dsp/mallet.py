@@ -47,7 +47,7 @@ def mallet_pulse(*, mass_kg: float, velocity_m_s: float, stiffness: float, sampl
     return pulse * (2.0 * mass_kg * velocity_m_s / (pulse.sum() / sample_rate))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _integrate(mass, velocity, stiffness, p, dt, samples):  # pragma: no cover - compiled
     """Impulse of the contact force in each sample (velocity Verlet, SUBSTEPS a sample)."""
     impulses = np.zeros(samples)

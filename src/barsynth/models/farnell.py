@@ -73,6 +73,8 @@ class FarnellVoice:
     (256,)
     """
 
+    TRIGGER_RESTARTS = True  # a trigger restarts the note (see models.crossfade)
+
     def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0):
         self._params = resolve_parameters(MODEL, parameters)
         self._seed = check_seed(seed)

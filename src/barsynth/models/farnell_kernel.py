@@ -56,7 +56,7 @@ _GAINS = np.array(CLAMPED_GAINS)
 _FREE = np.array(FREE_RATIOS)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def envelopes(t_s):
     """(c(t), E(t)) at ``t_s`` seconds after the trigger: the clamped envelope and the
     glide term ``3 d(t)^64``."""
@@ -70,7 +70,7 @@ def envelopes(t_s):
     return c, GLIDE_SCALE * d32 * d32
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def process(out, trace, params, sample_rate, state, rng, bands):
     """Render ``len(out)`` samples. ``trace`` (shape (3, n) or (0, 0)) receives the
     drive signal, the clamped bank C(t) and the free-bar sum, for measurement."""

@@ -204,6 +204,8 @@ class TwangVoice:
     >>> more = voice.process(256)
     """
 
+    TRIGGER_RESTARTS = True  # a trigger restarts the note (see models.crossfade)
+
     def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0,
                  mode_mask: Any = None):
         self._params = resolve_parameters(MODEL, parameters)

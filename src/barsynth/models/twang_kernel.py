@@ -87,7 +87,7 @@ CULL_LEVEL = 1e-7  # a mode whose output amplitude is below -140 dBFS is not com
 BAND_PEAK_FACTOR = 8.0  # bound on a band's output relative to its white-noise rms, for culling
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _smoothstep(u):
     if u <= 0.0:
         return 0.0
@@ -96,7 +96,7 @@ def _smoothstep(u):
     return u * u * (3.0 - 2.0 * u)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin, freqs, gains, alphas):
     """Fill ``freqs``, ``gains`` (linear) and ``alphas`` (1/s) for the 18 modes.
 
@@ -204,7 +204,7 @@ def design(params, lambdas, mode_mask, sample_rate, time_s, lfo_sin, freqs, gain
     return phasor_hz, norm
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bandpass(centre_hz, band_q, sample_rate, gains_out, b):
     """RBJ constant-peak band-pass section coefficients (b1 = 0, b2 = -b0).
 
@@ -224,7 +224,7 @@ def _bandpass(centre_hz, band_q, sample_rate, gains_out, b):
 
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _control(params, target, log_mask, smooth_k, lambdas, mode_mask, sample_rate, frame_len,
              scal, osc_pow, osc_gain, band_coef, band_pow, band_gain,
              freqs, gains, alphas):
@@ -297,7 +297,7 @@ def _control(params, target, log_mask, smooth_k, lambdas, mode_mask, sample_rate
     scal[S_FORCE] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _cull(scal, osc_z, osc_gain, band_env, band_gain, band_state, osc_active, band_active):
     """Choose the modes worth computing this frame; returns (n_osc, n_bands)."""
     n_osc = 0
@@ -319,7 +319,7 @@ def _cull(scal, osc_z, osc_gain, band_env, band_gain, band_state, osc_active, ba
     return n_osc, n_bands
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def process(out, params, target, log_mask, smooth_k, lambdas, mode_mask, sample_rate, frame_len,
             scal, rng, osc_z, osc_pow, osc_gain, band_state, band_coef, band_env,
             band_pow, band_gain, freqs, gains, alphas, excitation, osc_active, band_active,
@@ -355,7 +355,7 @@ def process(out, params, target, log_mask, smooth_k, lambdas, mode_mask, sample_
         pos += m
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _end_frame(frame_len, osc_z, osc_pow, osc_gain, band_env, band_pow, band_gain):
     """Advance phasors and envelopes by one frame; ramps land on their targets."""
     for j in range(N_OSC):
@@ -375,7 +375,7 @@ def _end_frame(frame_len, osc_z, osc_pow, osc_gain, band_env, band_pow, band_gai
             band_gain[1, b] = 0.0
 
 
-@njit(cache=True, fastmath=_CONTRACT)
+@njit(cache=True, nogil=True, fastmath=_CONTRACT)
 def _render(out, start, k0, m, scal, rng, osc_z, osc_pow, osc_gain, band_state, band_coef,
             band_env, band_pow, band_gain, excitation, osc_active, band_active, n_osc, n_bands):
     """Samples ``k0 .. k0+m-1`` of the current frame into ``out[start:start+m]``."""
@@ -438,7 +438,7 @@ def _render(out, start, k0, m, scal, rng, osc_z, osc_pow, osc_gain, band_state, 
         a += 2
 
 
-@njit(cache=True, fastmath=_CONTRACT)
+@njit(cache=True, nogil=True, fastmath=_CONTRACT)
 def _band(dst, diff, k0, m, b, band_state, band_coef, band_env, band_pow, band_gain):
     """One 4th-order band (two direct-form-I sections) with its gain and decay."""
     b0a = band_coef[0, b]
@@ -478,7 +478,7 @@ def _band(dst, diff, k0, m, b, band_state, band_coef, band_env, band_pow, band_g
     band_state[3, b] = yb2
 
 
-@njit(cache=True, fastmath=_CONTRACT)
+@njit(cache=True, nogil=True, fastmath=_CONTRACT)
 def _band_pair(dst, diff, k0, m, b, c, band_state, band_coef, band_env, band_pow,
                band_gain):
     """Two bands in one loop; the same arithmetic as :func:`_band` for each."""

@@ -50,3 +50,24 @@ def load_preset(model: str, name: str) -> dict[str, Any]:
 def preset_parameters(model: str, name: str) -> dict[str, Any]:
     """The ``[parameters]`` table of a preset (unvalidated; the model's table checks it)."""
     return dict(load_preset(model, name)["parameters"])
+
+
+def preset_file_parameters(model: str, path: Any) -> dict[str, Any]:
+    """The ``[parameters]`` table of a preset file of one's own (as ``barsynth studio`` saves
+    them), unvalidated; a file whose ``[preset] model`` names another model is refused."""
+    from pathlib import Path
+
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise PresetError(f"cannot read preset file {str(path)!r}: {getattr(exc, 'strerror', None) or exc}") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise PresetError(f"preset file {str(path)!r} is not valid TOML: {exc}") from None
+    if not isinstance(doc.get("parameters"), dict):
+        raise PresetError(f"preset file {str(path)!r} has no [parameters] table")
+    named = doc.get("preset", {}).get("model", model) if isinstance(doc.get("preset"), dict) else model
+    if named != model:
+        raise PresetError(f"preset file {str(path)!r} is for model {named!r}, not {model!r}")
+    return dict(doc["parameters"])

@@ -21,8 +21,10 @@ def _value(value: Any) -> str:
     return json.dumps(str(value), ensure_ascii=False)  # a TOML basic string
 
 
-def preset_toml(parameters: dict[str, Any], *, description: str, source: str = "made in barsynth studio") -> str:
-    """The text of a preset file: ``[preset]`` (description, source) and ``[parameters]``.
+def preset_toml(parameters: dict[str, Any], *, description: str, source: str = "made in barsynth studio",
+                model: str | None = None) -> str:
+    """The text of a preset file: ``[preset]`` (description, source, model) and ``[parameters]``.
+    ``barsynth render MODEL --preset FILE.toml`` reads it back.
 
     Examples
     --------
@@ -36,6 +38,9 @@ def preset_toml(parameters: dict[str, Any], *, description: str, source: str = "
     mode_ratios = [1.0, 4.0]
     shape = "bar"
     """
-    lines = ["[preset]", f"description = {_value(description)}", f"source = {_value(source)}", "", "[parameters]"]
+    lines = ["[preset]", f"description = {_value(description)}", f"source = {_value(source)}"]
+    if model is not None:
+        lines.append(f"model = {_value(model)}")
+    lines += ["", "[parameters]"]
     lines += [f"{name} = {_value(value)}" for name, value in parameters.items()]
     return "\n".join(lines) + "\n"

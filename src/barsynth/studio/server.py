@@ -1,11 +1,12 @@
-"""The studio's HTTP API (issue 6, part 1): models, presets, bounded renders, mode tables.
+"""The studio's web server: the page, its HTTP API and the live stream (issue 6).
 
 Every model's parameter table drives what the page shows (names, units, ranges,
 scales, choices); everything sent back is validated by the same table, so a bad value
 gets one line naming the parameter, the value, the allowed range and the unit, with a
 4xx status, and the server keeps serving. Renders are bounded in length
 (``MAX_DURATION_S``) and in number at once (``MAX_RENDERS``; the rest wait up to
-``RENDER_WAIT_S``, then get 503), and run off the event loop.
+``RENDER_WAIT_S``, then get 503), and run off the event loop. Live streams are
+bounded too (``MAX_STREAMS``; one more is closed with code 1013 and a reason).
 
 HTTP API (JSON in and out; errors are ``{"error": "one line"}``):
 
@@ -16,7 +17,12 @@ HTTP API (JSON in and out; errors are ``{"error": "one line"}``):
   (16-bit, peak at -1 dBFS)
 - ``POST /api/describe`` ``{"model", "parameters", "sample_rate"}``: the modes (and, for the
   reference models, each mode's error in cents)
+- ``POST /api/picture`` ``{"model", "parameters", "duration_s", "sample_rate", "width"}``:
+  waveform, spectrogram and modes of one strike (:mod:`barsynth.studio.pictures`)
 - ``POST /api/preset-file`` ``{"model", "parameters", "description"}``: a preset file (TOML)
+- ``WebSocket /api/stream``: the live stream (:mod:`barsynth.studio.stream`)
+
+``docs/studio.md`` describes every field.
 """
 
 from __future__ import annotations
@@ -24,22 +30,35 @@ from __future__ import annotations
 import asyncio
 import io
 import math
-from collections.abc import Iterable
+import sys
+from collections.abc import Callable, Iterable
+from importlib import resources
 from typing import Any
+from urllib.parse import urlsplit
 
-from fastapi import FastAPI, Request
+import uvicorn
+from fastapi import FastAPI, Request, WebSocket
 from fastapi.responses import JSONResponse, Response
 
 from ..errors import BarsynthError, ModelError
-from ..webserver import LOCAL_HOSTS, Refused, guard, read_json
+from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_json,
+                         shown_address)
+from .pictures import MAX_COLUMNS, mode_rows, picture
 from .presets_file import preset_toml
+from .stream import Stream, StreamError, parse_message
 
 MAX_BODY_BYTES = 16 * 1024
 MAX_DURATION_S = 20.0
 MAX_RENDERS = 2
 RENDER_WAIT_S = 10.0
 SAMPLE_RATES = (22050, 44100, 48000, 96000)
+MAX_STREAMS = 4
+MAX_MESSAGE_BYTES = 16 * 1024
+IDLE_S = 600.0  # a stream that hears nothing from its page for this long is closed
+DEFAULT_PORT = 8050
 _NO_STORE = {"Cache-Control": "no-store"}
+_STATIC = {"app.js": "text/javascript; charset=utf-8", "worklet.js": "text/javascript; charset=utf-8",
+           "style.css": "text/css; charset=utf-8"}
 
 
 def _model(name: Any) -> Any:
@@ -90,6 +109,16 @@ def _duration(value: Any) -> float:
     return float(value)
 
 
+def _width(value: Any) -> int:
+    if value is None:
+        return 600
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) \
+            or not 16 <= value <= MAX_COLUMNS:
+        raise Refused(422, f"parameter width = {value!r} is out of range; allowed: whole numbers from 16 to "
+                           f"{MAX_COLUMNS} pixels")
+    return int(value)
+
+
 def _json_safe(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
@@ -109,7 +138,21 @@ def wav_bytes(samples: Any, sample_rate: float) -> bytes:
 def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
     """The studio's FastAPI app; ``allowed_hosts`` as for the listening server (None: any)."""
     renders = asyncio.Semaphore(MAX_RENDERS)
+    streams: set[Stream] = set()
+    hosts = None if allowed_hosts is None else {h.lower() for h in allowed_hosts}
+    web = resources.files("barsynth.studio") / "web"
     app = FastAPI(title="barsynth studio", docs_url=None, redoc_url=None, openapi_url=None)
+
+    async def bounded(work: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        """Run heavy work off the event loop, at most ``MAX_RENDERS`` at once."""
+        try:
+            await asyncio.wait_for(renders.acquire(), RENDER_WAIT_S)
+        except TimeoutError:
+            raise Refused(503, f"the studio is busy ({MAX_RENDERS} renders at once); try again") from None
+        try:
+            return await asyncio.to_thread(work, *args, **kwargs)
+        finally:
+            renders.release()
 
     @app.exception_handler(Refused)
     async def refused(_request: Request, exc: Refused) -> JSONResponse:
@@ -120,6 +163,21 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
         return JSONResponse({"error": str(exc)}, status_code=422, headers=_NO_STORE)
 
     guard(app, allowed_hosts, MAX_BODY_BYTES, "the studio")
+
+    @app.get("/")
+    async def index() -> Response:
+        return Response((web / "index.html").read_bytes(), media_type="text/html; charset=utf-8",
+                        headers={"Cache-Control": "no-cache"})
+
+    @app.get("/static/{name}")
+    async def static(name: str) -> Response:
+        if name not in _STATIC:
+            raise Refused(404, f"no file {name[:40]!r}")
+        return Response((web / name).read_bytes(), media_type=_STATIC[name], headers={"Cache-Control": "no-cache"})
+
+    @app.get("/favicon.ico")
+    async def favicon() -> Response:
+        return Response(status_code=204)
 
     @app.get("/api/health")
     async def health() -> JSONResponse:
@@ -159,14 +217,7 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
         model = _model(wish["model"])
         resolved = _resolved(model, wish.get("parameters"))
         rate, seconds = _rate(wish.get("sample_rate")), _duration(wish.get("duration_s"))
-        try:
-            await asyncio.wait_for(renders.acquire(), RENDER_WAIT_S)
-        except TimeoutError:
-            raise Refused(503, f"the studio is busy ({MAX_RENDERS} renders at once); try again") from None
-        try:
-            samples = await asyncio.to_thread(model.render, resolved, duration_s=seconds, sample_rate=rate)
-        finally:
-            renders.release()
+        samples = await bounded(model.render, resolved, duration_s=seconds, sample_rate=rate)
         return Response(wav_bytes(samples, rate), media_type="audio/wav",
                         headers={**_NO_STORE, "Content-Disposition": f'attachment; filename="{model.name}.wav"'})
 
@@ -176,13 +227,19 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
         model = _model(wish["model"])
         resolved = _resolved(model, wish.get("parameters"))
         rate = _rate(wish.get("sample_rate"))
-        modes = await asyncio.to_thread(model.describe, resolved, sample_rate=rate)
-        errors = model.errors_cents(resolved, sample_rate=rate) if hasattr(model, "errors_cents") else None
-        rows = [{k: _json_safe(v) for k, v in m.to_json().items()} for m in modes]
-        for k, row in enumerate(rows):
-            if errors is not None and k < len(errors):
-                row["error_cents"] = _json_safe(errors[k])
+        rows = await bounded(mode_rows, model, resolved, rate)
         return JSONResponse({"model": model.name, "sample_rate": rate, "modes": rows}, headers=_NO_STORE)
+
+    @app.post("/api/picture")
+    async def picture_of(request: Request) -> JSONResponse:
+        wish = _fields(await read_json(request, MAX_BODY_BYTES), {"model"},
+                       {"parameters", "duration_s", "sample_rate", "width"})
+        model = _model(wish["model"])
+        resolved = _resolved(model, wish.get("parameters"))
+        rate, seconds = _rate(wish.get("sample_rate")), _duration(wish.get("duration_s", 1.5))
+        found = await bounded(picture, model, resolved, sample_rate=rate, duration_s=seconds,
+                              width=_width(wish.get("width")))
+        return JSONResponse(found, headers=_NO_STORE)
 
     @app.post("/api/preset-file")
     async def preset_file(request: Request) -> Response:
@@ -192,8 +249,116 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
         description = wish.get("description", f"{model.name} settings")
         if not isinstance(description, str) or not 0 < len(description) <= 200:
             raise Refused(422, "description must be text of 1 to 200 characters")
-        text = preset_toml(model.table.as_dict(resolved), description=description)
+        text = preset_toml(model.table.as_dict(resolved), description=description, model=model.name)
         return Response(text, media_type="application/toml; charset=utf-8",
                         headers={**_NO_STORE, "Content-Disposition": f'attachment; filename="{model.name}.toml"'})
 
+    def foreign(socket: WebSocket) -> bool:
+        """A page of another site (its Origin) or a rebound name (its Host) may not open a stream."""
+        if hosts is None:
+            return False
+        origin = socket.headers.get("origin")
+        if origin is not None and host_name(urlsplit(origin).netloc) not in hosts:
+            return True
+        return host_name(socket.headers.get("host", "")) not in hosts
+
+    @app.websocket("/api/stream")
+    async def stream(socket: WebSocket) -> None:
+        if foreign(socket):
+            await socket.close(code=1008)  # before accepting: the handshake is refused (403)
+            return
+        await socket.accept()
+        if len(streams) >= MAX_STREAMS:
+            await socket.close(code=1013, reason=f"the studio is playing {MAX_STREAMS} streams at once; "
+                                                 "try again later")
+            return
+        session = Stream()
+        streams.add(session)
+        await _play(socket, session)
+        streams.discard(session)
+
     return app
+
+
+async def _play(socket: WebSocket, session: Stream) -> None:
+    """Serve one stream until the page goes: read its messages, send its blocks at its pace."""
+    from starlette.websockets import WebSocketDisconnect
+
+    busy, sending, wake = asyncio.Lock(), asyncio.Lock(), asyncio.Event()
+
+    async def send(text: dict | None = None, data: bytes | None = None) -> None:
+        async with sending:
+            if data is not None:
+                await socket.send_bytes(data)
+            else:
+                await socket.send_json(text)
+
+    async def produce() -> None:
+        while True:
+            while session.wants_block():
+                async with busy:
+                    data = await asyncio.to_thread(session.next_block)
+                    refused = session.refused()
+                await send(data=data)
+                for message in refused:
+                    await send({"type": "error", "error": message})
+            wake.clear()
+            if not session.wants_block():
+                await wake.wait()
+
+    async def act(text: str) -> None:
+        if len(text.encode()) > MAX_MESSAGE_BYTES:
+            raise StreamError(f"a stream message is too large; allowed: up to {MAX_MESSAGE_BYTES} bytes")
+        message = parse_message(text)
+        if message["type"] == "start":
+            model, resolved, rate = session.prepare_start(message)
+            voice, gain = await asyncio.to_thread(Stream.build_voice, model, resolved, rate)
+            async with busy:
+                started = session.start(model, voice, gain, rate)
+            await send(started)
+        else:
+            async with busy:
+                session.handle(message)
+
+    producer = asyncio.create_task(produce())
+    try:
+        while True:
+            try:
+                received = await asyncio.wait_for(socket.receive(), IDLE_S)
+            except TimeoutError:
+                await socket.close(code=1001, reason="no message for 10 minutes; the stream is closed")
+                break
+            if received["type"] == "websocket.disconnect":
+                break
+            try:
+                if received.get("text") is None:
+                    raise StreamError("stream messages are JSON text; binary frames are not taken")
+                await act(received["text"])
+            except BarsynthError as exc:
+                await send({"type": "error", "error": str(exc)})
+            wake.set()
+    except (WebSocketDisconnect, RuntimeError):
+        pass  # the page went away mid-send
+    finally:
+        producer.cancel()
+        try:
+            await producer
+        except (asyncio.CancelledError, WebSocketDisconnect, RuntimeError, OSError):
+            pass
+
+
+def serve(*, host: str = "127.0.0.1", port: int = DEFAULT_PORT, echo: Callable[[str], None] = print) -> None:
+    """Serve the studio until stopped (Ctrl-C or SIGTERM)."""
+    sock = listen_socket(host, port)
+    try:
+        app = create_app(allowed_hosts=hosts_for(host))
+        echo(f"barsynth studio at {shown_address(sock)} (Ctrl-C stops)")
+        if sock.getsockname()[0] not in ("127.0.0.1", "::1"):
+            echo("barsynth studio: warning: listening beyond this machine; anyone who can reach it can use it")
+        sys.stdout.flush()
+        config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
+                                ws_max_size=MAX_MESSAGE_BYTES, ws_ping_interval=20.0, ws_ping_timeout=20.0)
+        QuietStop(config).run(sockets=[sock])
+    finally:
+        sock.close()
+    echo("barsynth studio: stopped")

@@ -1,0 +1,275 @@
+"""One live stream of the studio: a model's voice, played at the page's pace.
+
+The page (an AudioWorklet) plays what the server sends and reports how much it has
+played; :class:`Stream` keeps at most ``lead`` samples beyond that in flight, so a
+change is heard after at most the lead (about 32 ms), the report interval and the
+browser's own output latency. Every change and re-trigger goes through a
+:class:`~barsynth.models.crossfade.CrossfadingVoice`, so nothing clicks.
+
+This module knows nothing of HTTP: the server feeds it the page's messages
+(:meth:`Stream.handle`) and sends what :meth:`Stream.next_block` returns. The
+messages are described in ``docs/studio.md``.
+
+- Level: the gain is set when a voice starts, from an offline render of its settings
+  (peak at ``HEADROOM_DBFS``); a limiter lowers it (ramped within a block) when a block
+  would pass ``LIMIT`` and lets it back up by ``RECOVERY_DB_PER_S``.
+- A new ``start`` fades the old voice out over the cross-fade time while the new one
+  begins; ``stop`` fades out, then silences the voice and stops sending.
+- Sleep: a stream whose sound has stayed below ``SILENCE`` for ``SLEEP_AFTER_S`` and
+  that has not been triggered for ``AWAKE_AFTER_TRIGGER_S`` sends nothing until the next
+  trigger or change (a forgotten tab costs nothing).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import BarsynthError
+from ..models.crossfade import DEFAULT_FADE_S, CrossfadingVoice
+
+BLOCK = 256  # samples per message
+LEAD_S = 0.032  # how far the server may run ahead of what the page has played
+HEADROOM_DBFS = -6.0
+LIMIT = 0.98
+RECOVERY_DB_PER_S = 6.0
+SILENCE = 1e-5  # -100 dBFS
+SLEEP_AFTER_S = 1.0
+AWAKE_AFTER_TRIGGER_S = 3.0
+MIN_STREAM_RATE = 8000
+MAX_STREAM_RATE = 96000
+MAX_ID = 2 ** 32 - 1
+GAIN_PROBE_S = 1.0  # the offline render that sets a new voice's gain
+HEADER = struct.Struct("<II")
+
+MESSAGES = {  # type -> (required fields, optional fields)
+    "start": ({"model"}, {"parameters", "sample_rate"}),
+    "trigger": (set(), set()),
+    "release": (set(), set()),
+    "set": ({"parameters"}, {"id"}),
+    "played": ({"samples"}, set()),
+    "stop": (set(), set()),
+}
+
+
+class StreamError(BarsynthError):
+    """A message the stream cannot act on; the stream goes on as it was."""
+
+
+def _whole(name: str, value: Any, low: int, high: int, unit: str = "") -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) \
+            or not low <= value <= high:
+        raise StreamError(f"parameter {name} = {value!r} is out of range; allowed: whole numbers from "
+                          f"{low} to {high}{' ' + unit if unit else ''}")
+    return int(value)
+
+
+def parse_message(text: str) -> dict[str, Any]:
+    """A page's message as a dict with a known ``type`` and only its fields; else :class:`StreamError`."""
+    try:
+        message = json.loads(text, parse_constant=lambda name: (_ for _ in ()).throw(ValueError(name)))
+    except (ValueError, RecursionError):
+        raise StreamError("a stream message must be a JSON object; this is not valid JSON") from None
+    if not isinstance(message, dict) or message.get("type") not in MESSAGES:
+        kind = message.get("type") if isinstance(message, dict) else None
+        raise StreamError(f"parameter type = {kind!r} is not a stream message; allowed: one of "
+                          f"{', '.join(MESSAGES)}")
+    required, optional = MESSAGES[message["type"]]
+    fields = set(message) - {"type"}
+    if required - fields:
+        raise StreamError(f"a {message['type']} message needs {', '.join(sorted(required - fields))}")
+    if fields - required - optional:
+        raise StreamError(f"unknown field {sorted(fields - required - optional)[0]!r} in a {message['type']} "
+                          f"message; allowed: {', '.join(sorted(required | optional)) or 'none'}")
+    return message
+
+
+@dataclass
+class _Playing:
+    """A voice that sounds: its model, the cross-fading voice and its gain."""
+
+    model: Any
+    voice: CrossfadingVoice
+    base_gain: float
+    gain: float
+
+
+class Stream:
+    """One page's live stream (see the module docstring); not thread-safe: one caller at a time."""
+
+    def __init__(self, *, lead_s: float = LEAD_S, block: int = BLOCK):
+        self.block = block
+        self.lead_s = lead_s
+        self.sample_rate = 0
+        self.blocks_sent = 0
+        self.samples_sent = 0
+        self.samples_played = 0
+        self.applied_id = 0
+        self._playing: _Playing | None = None
+        self._leaving: list[tuple[_Playing, int]] = []  # voices fading out, with samples done
+        self._running = False  # sending blocks
+        self._stopping = -1  # samples of the stop fade done, or -1
+        self._silent = 0  # samples in a row below SILENCE
+        self._since_trigger = 0
+
+    # -- state ------------------------------------------------------------------------
+    @property
+    def lead(self) -> int:
+        """Samples the server may have in flight beyond what was played (whole blocks)."""
+        return self.block * max(1, math.ceil(self.lead_s * self.sample_rate / self.block))
+
+    @property
+    def model_name(self) -> str | None:
+        return self._playing.model.name if self._playing else None
+
+    @property
+    def running(self) -> bool:
+        return self._running
+
+    def wants_block(self) -> bool:
+        """Whether a block should be sent now."""
+        return self._running and self.samples_sent - self.samples_played < self.lead
+
+    def _fade(self) -> int:
+        return max(1, int(round(DEFAULT_FADE_S * self.sample_rate)))
+
+    # -- messages -----------------------------------------------------------------------
+    def prepare_start(self, message: dict[str, Any]) -> tuple[Any, Any, int]:
+        """Check a ``start`` message: the model, its resolved parameters and the rate (cheap)."""
+        from ..models import get_model
+
+        name = message["model"]
+        if not isinstance(name, str):
+            raise StreamError(f"parameter model = {name!r} is not a model name")
+        model = get_model(name)
+        parameters = message.get("parameters") or {}
+        if not isinstance(parameters, dict):
+            raise StreamError("parameters must be a JSON object of parameter names and values")
+        resolved = model.table.resolve(parameters)
+        rate = message.get("sample_rate", 48000)
+        if self._playing is not None and rate != self.sample_rate:
+            raise StreamError(f"parameter sample_rate = {rate!r} differs from this stream's "
+                              f"{self.sample_rate} Hz; allowed: {self.sample_rate} Hz (open a new stream)")
+        return model, resolved, _whole("sample_rate", rate, MIN_STREAM_RATE, MAX_STREAM_RATE, "Hz")
+
+    @staticmethod
+    def build_voice(model: Any, resolved: Any, rate: int) -> tuple[CrossfadingVoice, float]:
+        """A new cross-fading voice and its gain (the expensive part of a start: run it off the event loop)."""
+        voice = model.voice(resolved, sample_rate=rate, seed=None)
+        try:
+            probe = model.render(resolved, duration_s=GAIN_PROBE_S, sample_rate=rate, normalize=False,
+                                 dtype=np.float64)
+            peak = float(np.max(np.abs(probe)))
+        except BarsynthError:
+            peak = 0.0  # e.g. a twang with no audible mode: silent now, a change may make it sound
+        gain = 10.0 ** (HEADROOM_DBFS / 20.0) / peak if peak > 0.0 and math.isfinite(peak) else 1.0
+        return CrossfadingVoice(voice, table=model.table), gain
+
+    def start(self, model: Any, voice: CrossfadingVoice, gain: float, rate: int) -> dict[str, Any]:
+        """Put a built voice in place (the old one fades out); returns the ``started`` message."""
+        if self._playing is not None:
+            self._leaving.append((self._playing, 0))
+        self.sample_rate = rate
+        self._playing = _Playing(model, voice, gain, gain)
+        self._stopping = -1
+        self._wake()
+        return {"type": "started", "model": model.name, "sample_rate": rate, "block": self.block,
+                "lead": self.lead}
+
+    def handle(self, message: dict[str, Any]) -> None:
+        """Carry out a parsed message other than ``start`` (raises :class:`StreamError` or a
+        parameter error; then nothing has changed)."""
+        kind = message["type"]
+        if kind == "played":
+            played = _whole("samples", message["samples"], 0, 2 ** 53)
+            self.samples_played = max(self.samples_played, min(played, self.samples_sent))
+            return
+        playing = self._playing
+        if playing is None:
+            raise StreamError(f"a {kind} message needs a started stream; send start first")
+        if kind == "set":
+            values = message["parameters"]
+            if not isinstance(values, dict):
+                raise StreamError("parameters must be a JSON object of parameter names and values")
+            change_id = _whole("id", message.get("id", self.applied_id), 0, MAX_ID)
+            playing.voice.set_parameters(**values)
+            self.applied_id = change_id
+            self._wake()
+        elif kind == "trigger":
+            playing.voice.trigger()
+            self._since_trigger = 0
+            self._stopping = -1
+            self._wake()
+        elif kind == "release":
+            playing.voice.release()
+        elif kind == "stop":
+            if self._running and self._stopping < 0:
+                self._stopping = 0
+
+    def _wake(self) -> None:
+        self._running = True
+        self._silent = 0
+
+    def refused(self) -> list[str]:
+        """Messages of changes the voice refused when they were applied after a fade (then forgotten)."""
+        if self._playing is None or not self._playing.voice.refused:
+            return []
+        messages, self._playing.voice.refused = self._playing.voice.refused, []
+        return messages
+
+    # -- sound ------------------------------------------------------------------------
+    def next_block(self) -> bytes:
+        """The next message of audio: the header and ``block`` float32 samples."""
+        n = self.block
+        out = self._voice_block(self._playing, n) if self._playing else np.zeros(n)
+        for k, (leaving, done) in enumerate(self._leaving):
+            fall = 1.0 - (done + 1 + np.arange(n)) / (self._fade() + 1)
+            out += self._voice_block(leaving, n) * np.clip(fall, 0.0, 1.0)
+            self._leaving[k] = (leaving, done + n)
+        self._leaving = [(p, d) for p, d in self._leaving if d < self._fade()]
+        if self._stopping >= 0:
+            out *= np.clip(1.0 - (self._stopping + 1 + np.arange(n)) / (self._fade() + 1), 0.0, 1.0)
+            self._stopping += n
+        np.clip(out, -1.0, 1.0, out=out)
+        header = HEADER.pack(self.blocks_sent & MAX_ID, self.applied_id)
+        self.blocks_sent += 1
+        self.samples_sent += n
+        self._since_trigger += n
+        self._after_block(out)
+        return header + out.astype("<f4").tobytes()
+
+    def _voice_block(self, playing: _Playing, n: int) -> np.ndarray:
+        x = playing.voice.process(n, dtype=np.float64)
+        if not np.all(np.isfinite(x)):  # never send a NaN: silence the voice instead
+            playing.voice.reset()
+            x = np.zeros(n)
+        peak = float(np.max(np.abs(x))) if n else 0.0
+        rate = self.sample_rate
+        wanted = playing.gain * 10.0 ** (RECOVERY_DB_PER_S * n / rate / 20.0)
+        wanted = min(playing.base_gain, wanted)
+        if peak * wanted > LIMIT:
+            wanted = LIMIT / peak
+        ramp = min(n, 32) if wanted < playing.gain else n  # down fast (32 samples), up slowly
+        gains = np.full(n, wanted)
+        gains[:ramp] = playing.gain + (wanted - playing.gain) * (np.arange(1, ramp + 1) / ramp)
+        playing.gain = wanted
+        return x * gains
+
+    def _after_block(self, out: np.ndarray) -> None:
+        if self._stopping >= self._fade():  # faded out: silence and rest
+            self._stopping = -1
+            self._running = False
+            if self._playing is not None:
+                self._playing.voice.reset()
+            self._leaving = []
+            return
+        loud = np.flatnonzero(np.abs(out) >= SILENCE)
+        self._silent = self._silent + out.size if loud.size == 0 else out.size - 1 - int(loud[-1])
+        if (self._silent >= SLEEP_AFTER_S * self.sample_rate and self._since_trigger >= AWAKE_AFTER_TRIGGER_S
+                * self.sample_rate and not self._leaving and not (self._playing and self._playing.voice.fading)):
+            self._running = False
