@@ -96,3 +96,101 @@ def test_garbage_bodies_and_foreign_hosts_are_refused(client):
     assert client.get("/api/models/banded/presets/nothing").status_code == 404
     assert client.get("/api/health", headers={"host": "evil.example"}).status_code == 400
     assert client.get("/api/health").json() == {"ok": True}
+
+
+def test_a_preset_file_names_its_model_and_the_cli_reads_it_back(client, tmp_path):
+    from click.testing import CliRunner
+
+    from barsynth.cli import main
+
+    r = client.post("/api/preset-file", json={"model": "twang", "parameters": {"q": 321.0}, "description": "mine"})
+    assert tomllib.loads(r.text)["preset"]["model"] == "twang"
+    (tmp_path / "mine.toml").write_text(r.text)
+    out = CliRunner().invoke(main, ["describe", "twang", "--preset", str(tmp_path / "mine.toml"), "--json"])
+    assert out.exit_code == 0, out.output
+    assert json.loads(out.output)["parameters"]["q"] == 321.0
+    refused = CliRunner().invoke(main, ["describe", "banded", "--preset", str(tmp_path / "mine.toml")])
+    assert refused.exit_code == 2 and "is for model 'twang', not 'banded'" in refused.output
+
+
+def test_the_page_and_its_files_are_served_with_their_types(client):
+    page = client.get("/")
+    assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
+    assert "default-src 'self'" in page.headers["content-security-policy"]
+    for name, kind in [("app.js", "text/javascript"), ("worklet.js", "text/javascript"), ("style.css", "text/css")]:
+        r = client.get(f"/static/{name}")
+        assert r.status_code == 200 and r.headers["content-type"].startswith(kind) and r.content
+    assert client.get("/static/server.py").status_code == 404
+
+
+def test_a_picture_shows_the_sound_of_the_settings(client):
+    r = client.post("/api/picture", json={"model": "banded", "parameters": {"tuning": "ratios", "frequency_hz": 1000.0},
+                                          "duration_s": 1.0, "sample_rate": 48000, "width": 200})
+    assert r.status_code == 200
+    found = r.json()
+    wave, spec = found["waveform"], found["spectrogram"]
+    assert len(wave["min"]) == len(wave["max"]) == 200
+    assert max(max(wave["max"]), -min(wave["min"])) == pytest.approx(10 ** (-1 / 20), rel=1e-3)
+    levels = np.frombuffer(__import__("base64").b64decode(spec["levels"]), np.uint8)
+    levels = levels.reshape(spec["bins"], len(spec["times_s"]))
+    loudest_row = int(np.argmax(levels[:, :20].max(axis=1)))  # at the start, where every mode rings
+    row_hz = spec["max_frequency_hz"] / spec["bins"]
+    assert abs((loudest_row + 0.5) * row_hz - 1000.0) <= row_hz
+    assert [m["frequency_hz"] for m in found["modes"]] == pytest.approx([1000.0, 4000.0, 10000.0])  # ratios 1:4:10
+    bad = client.post("/api/picture", json={"model": "banded", "width": 5})
+    assert bad.status_code == 422 and "width = 5 is out of range" in bad.json()["error"]
+
+
+def test_the_twangs_picture_lists_its_three_groups_of_modes(client):
+    modes = client.post("/api/picture", json={"model": "twang", "width": 100}).json()["modes"]
+    groups = [m["group"] for m in modes]
+    assert {g: groups.count(g) for g in set(groups)} == {"full-cantilever": 6, "short-cantilever": 6, "free-bar": 6}
+    assert all(m["t60_s"] > 0 and m["gain"] > 0 for m in modes)
+
+
+def ws(client):
+    return client.websocket_connect("/api/stream", headers={"host": "127.0.0.1:8000"})
+
+
+def blocks(socket, count):
+    out = []
+    while len(out) < count:
+        message = socket.receive()
+        if message.get("bytes"):
+            out.append(message["bytes"])
+        elif message.get("text") and json.loads(message["text"])["type"] == "error":
+            raise AssertionError(message["text"])
+    return out
+
+
+def test_a_stream_plays_the_model_and_follows_a_change(client):
+    import struct
+
+    with ws(client) as socket:
+        socket.send_json({"type": "start", "model": "banded", "sample_rate": 48000,
+                          "parameters": {"tuning": "ratios", "frequency_hz": 500.0}})
+        assert socket.receive_json() == {"type": "started", "model": "banded", "sample_rate": 48000,
+                                         "block": 256, "lead": 1536}
+        socket.send_json({"type": "trigger"})
+        got = blocks(socket, 6)
+        assert [struct.unpack("<II", b[:8]) for b in got] == [(k, 0) for k in range(6)]
+        socket.send_json({"type": "set", "id": 5, "parameters": {"frequency_hz": 800.0}})
+        socket.send_json({"type": "played", "samples": 6 * 256})
+        later = blocks(socket, 6)
+        assert struct.unpack("<II", later[-1][:8])[1] == 5
+        socket.send_json({"type": "set", "parameters": {"colour": 1}})
+        while (message := socket.receive()).get("text") is None:
+            pass
+        assert json.loads(message["text"]) == {
+            "type": "error", "error": "unknown parameter 'colour' for model banded; known: " + ", ".join(
+                get_model("banded").table.names)}
+
+
+def test_a_stream_from_another_site_is_refused(client):
+    from starlette.websockets import WebSocketDisconnect
+
+    with pytest.raises(WebSocketDisconnect) as refused:
+        with client.websocket_connect("/api/stream", headers={"host": "127.0.0.1:8000",
+                                                              "origin": "http://evil.example"}):
+            pass
+    assert refused.value.code == 1008

@@ -11,9 +11,10 @@ the change, so their gains sum to one). Both paths are continuous, so their mix 
 - ``set_parameters``: always cross-faded; a change that arrives during a fade waits
   for it to end (at most ``fade_s``), merged with any others that wait.
 - ``trigger``: a voice whose trigger restarts the sound (``TRIGGER_RESTARTS``: the
-  twang, Farnell's twang) rings on in a copy that fades out while the new note starts
-  at once with its own attack; a voice whose strikes add to what rings (banded,
-  all-pass, finite-difference) is struck as it is, with no copy.
+  twang and Farnell's twang, which restart their phasors and empty their filters) rings
+  on in a copy that fades out while the new note starts at once, at full level, with its
+  own attack; a voice whose strikes add to what rings (banded, all-pass,
+  finite-difference) is struck as it is, with no copy.
 - ``release`` goes straight to the voice.
 
 With no event pending the output is the voice's own, sample for sample.
@@ -60,6 +61,7 @@ class CrossfadingVoice:
         self._table = table if table is not None else getattr(model, "table", None)
         self._old: Any = None  # the voice as it was, fading out
         self._done = 0  # samples of the fade done
+        self._restart = False  # the fade is a restart: the new note sounds at once, the old fades out
         self._waiting: list[tuple[str, dict[str, Any]]] = []  # events that arrived during a fade
         self.refused: list[str] = []
 
@@ -103,7 +105,7 @@ class CrossfadingVoice:
     def _change(self, values: dict[str, Any]) -> None:
         old = copy.deepcopy(self.voice)
         self.voice.set_parameters(**values)  # may raise: then nothing has changed
-        self._old, self._done = old, 0
+        self._old, self._done, self._restart = old, 0, False
 
     def trigger(self) -> None:
         """Strike (twang, bow, pluck) now; a restarting note's old sound fades out."""
@@ -114,7 +116,7 @@ class CrossfadingVoice:
         elif self._old is not None:
             self._waiting.append(("trigger", {}))  # the mix of a fade cannot be copied: after it
         else:
-            self._old, self._done = copy.deepcopy(self.voice), 0
+            self._old, self._done, self._restart = copy.deepcopy(self.voice), 0, True
             self.voice.trigger()
 
     def release(self) -> None:
@@ -152,7 +154,10 @@ class CrossfadingVoice:
             new = self.voice.process(count, dtype=np.float64)
             old = self._old.process(count, dtype=np.float64)
             rise = (self._done + 1 + np.arange(count)) / (self._length + 1)
-            out[start:start + count] = old + rise * (new - old)
+            if self._restart:  # the new note with its own attack; the old one fades out
+                out[start:start + count] = new + (1.0 - rise) * old
+            else:  # the same sound before and after the change: gains that sum to one
+                out[start:start + count] = old + rise * (new - old)
             self._done += count
             start += count
             if self._done >= self._length:

@@ -105,9 +105,14 @@ class FarnellVoice:
         self._vector = _vector(self._params)
 
     def trigger(self) -> None:
-        """Strike: the phasor restarts at 0, both envelopes jump to 1."""
+        """Strike: the phasor restarts at 0, both envelopes jump to 1 and the filters start
+        empty, so a new note is the same whether or not one was ringing. (A ringing note is
+        cut: :class:`~barsynth.models.crossfade.CrossfadingVoice` fades it out instead.)"""
         self._state[K.S_TIME] = 0.0
         self._state[K.S_PHASE] = 0.0
+        self._state[K.S_LOWPASS] = 0.0
+        self._state[K.S_HP_LAST] = 0.0
+        self._bands[:] = 0.0
 
     def process(self, num_samples: int, *, dtype: Any = np.float32, trace: bool = False) -> Any:
         """The next ``num_samples`` samples. With ``trace`` also a dict of the drive

@@ -256,7 +256,8 @@ class TwangVoice:
         self._target = _vector(self._params)
 
     def trigger(self) -> None:
-        """Twang: restart every phasor at phase 0 with full amplitude."""
+        """Twang: restart every phasor at phase 0 with full amplitude. (A ringing note is cut:
+        :class:`~barsynth.models.crossfade.CrossfadingVoice` fades it out instead.)"""
         self._current[:] = self._target
         self._scal[K.S_PHASE] = 0.0
         self._scal[K.S_TIME] = 0.0

@@ -1,0 +1,158 @@
+"""The studio's live stream (studio.stream) without a network: pacing, changes, level, stop, sleep."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from barsynth.errors import ParameterError
+from barsynth.models import get_model
+from barsynth.studio.stream import BLOCK, HEADER, LIMIT, Stream, StreamError, parse_message
+
+RATE = 48000
+
+
+def started(model_name: str = "banded", parameters: dict | None = None, **options) -> Stream:
+    stream = Stream(**options)
+    model, resolved, rate = stream.prepare_start({"model": model_name, "parameters": parameters or {},
+                                                  "sample_rate": RATE})
+    stream.start(model, *Stream.build_voice(model, resolved, rate), rate)
+    return stream
+
+
+def decode(data: bytes) -> tuple[int, int, np.ndarray]:
+    number, change = HEADER.unpack(data[:HEADER.size])
+    return number, change, np.frombuffer(data[HEADER.size:], "<f4")
+
+
+def play(stream: Stream, seconds: float, *, played_too: bool = True) -> tuple[np.ndarray, list[int]]:
+    """Take blocks for ``seconds``, reporting each as played at once (a page keeping up)."""
+    samples, ids = [], []
+    for _ in range(int(seconds * RATE) // BLOCK):
+        if not stream.wants_block():
+            break
+        _, change, x = decode(stream.next_block())
+        samples.append(x)
+        ids.append(change)
+        if played_too:
+            stream.handle({"type": "played", "samples": stream.samples_sent})
+    return (np.concatenate(samples) if samples else np.zeros(0, np.float32)), ids
+
+
+def test_the_stream_is_the_models_sound_times_one_gain():
+    """Block for block, the stream is the voice's own samples times the gain set at the start
+    (here the limiter has nothing to do): the offline render, scaled."""
+    stream = started("banded", {"tuning": "ratios", "frequency_hz": 440.0})
+    stream.handle({"type": "trigger"})
+    x, _ = play(stream, 1.0)
+    offline = get_model("banded").render({"tuning": "ratios", "frequency_hz": 440.0}, duration_s=x.size / RATE,
+                                         sample_rate=RATE, normalize=False, dtype=np.float64)
+    gain = 10 ** (-6 / 20) / np.max(np.abs(offline))  # the probe's peak: the first second
+    np.testing.assert_allclose(x, (offline * gain).astype(np.float32), rtol=0, atol=2e-7)
+    assert np.max(np.abs(x)) == pytest.approx(10 ** (-6 / 20), rel=1e-4)
+
+
+def test_the_server_never_runs_more_than_the_lead_ahead():
+    stream = started()
+    stream.handle({"type": "trigger"})
+    sent = 0
+    while stream.wants_block():
+        stream.next_block()
+        sent += 1
+    assert sent * BLOCK == stream.lead and stream.lead == 1536  # 32 ms at 48 kHz
+    stream.handle({"type": "played", "samples": 512})
+    assert sum(1 for _ in iter(lambda: stream.wants_block() and stream.next_block(), False)) == 2
+    stream.handle({"type": "played", "samples": 10 ** 9})  # more than was sent: counted as all of it
+    assert stream.samples_played == stream.samples_sent
+
+
+def test_a_change_is_in_the_next_block_and_carries_its_id():
+    """The page's in-flight audio is at most the lead, so a change is heard after at most that."""
+    stream = started("banded", {"tuning": "ratios", "frequency_hz": 440.0})
+    stream.handle({"type": "trigger"})
+    play(stream, 0.3)
+    stream.handle({"type": "set", "id": 7, "parameters": {"frequency_hz": 660.0}})
+    in_flight = stream.samples_sent - stream.samples_played
+    assert in_flight <= stream.lead
+    x, ids = play(stream, 0.6)
+    assert ids[0] == 7 and set(ids) == {7}
+    spectrum = np.abs(np.fft.rfft(x[4800:] * np.hanning(x.size - 4800)))
+    assert np.fft.rfftfreq(x.size - 4800, 1 / RATE)[np.argmax(spectrum)] == pytest.approx(660.0, abs=2.0)
+
+
+def largest_step(x: np.ndarray) -> float:
+    return float(np.max(np.abs(np.diff(x))))
+
+
+def test_a_new_model_fades_the_old_one_out_without_a_click():
+    stream = started("banded", {"tuning": "ratios", "frequency_hz": 440.0})
+    stream.handle({"type": "trigger"})
+    before, _ = play(stream, 0.2)
+    model, resolved, rate = stream.prepare_start({"model": "twang", "sample_rate": RATE})
+    stream.start(model, *Stream.build_voice(model, resolved, rate), rate)
+    after, _ = play(stream, 0.1)
+    assert stream.model_name == "twang"
+    assert largest_step(np.concatenate([before[-480:], after[:960]])) <= 1.05 * largest_step(before[-960:])
+    assert np.max(np.abs(after[960:])) < 1e-6  # the old voice is gone, the twang not yet triggered
+
+
+def test_a_change_that_makes_it_much_louder_is_limited_smoothly():
+    stream = started("banded")
+    stream.handle({"type": "trigger"})
+    before, _ = play(stream, 0.1)
+    stream.handle({"type": "set", "id": 1, "parameters": {"level_db": 40.0}})
+    after, _ = play(stream, 1.0)
+    x = np.concatenate([before, after])
+    assert np.all(np.isfinite(x)) and np.max(np.abs(x)) <= 1.0
+    assert np.mean(np.abs(after) >= 0.999) < 0.002  # hardly a sample at full scale
+    assert np.max(np.abs(after[-RATE // 2:])) <= LIMIT
+
+
+def test_stop_fades_out_in_10_ms_then_stops_sending_and_a_trigger_starts_afresh():
+    stream = started()
+    stream.handle({"type": "trigger"})
+    play(stream, 0.2)
+    stream.handle({"type": "stop"})
+    x, _ = play(stream, 0.2)
+    assert not stream.running and x.size <= 768  # 10 ms, in whole blocks
+    assert abs(x[-1]) < 1e-3 and largest_step(x) < 0.05
+    stream.handle({"type": "trigger"})
+    again, _ = play(stream, 0.05)
+    assert stream.running and np.max(np.abs(again)) > 0.1
+
+
+def test_a_silent_stream_sleeps_and_a_change_wakes_it():
+    stream = started("banded", {"tuning": "ratios", "frequency_hz": 2000.0, "mode_t60s_s": (0.05,)})
+    stream.handle({"type": "trigger"})
+    x, _ = play(stream, 10.0)
+    assert not stream.running
+    assert 3.0 <= x.size / RATE <= 3.1  # three seconds after the trigger, silent for one
+    stream.handle({"type": "set", "id": 2, "parameters": {"level_db": -3.0}})
+    assert stream.running
+
+
+def test_bad_messages_are_refused_and_change_nothing():
+    stream = started("twang")
+    for text, words in [("not json", "not valid JSON"), ("[1]", "not a stream message"),
+                        ('{"type": "dance"}', "'dance' is not a stream message"),
+                        ('{"type": "set"}', "needs parameters"),
+                        ('{"type": "set", "parameters": {}, "colour": 1}', "unknown field 'colour'"),
+                        ('{"type": "played", "samples": NaN}', "not valid JSON"),
+                        ('{"type": "trigger", "x": 1}', "allowed: none")]:
+        with pytest.raises(StreamError, match=words):
+            parse_message(text)
+    with pytest.raises(ParameterError, match="q = 5000"):
+        stream.handle(parse_message(json.dumps({"type": "set", "id": 1, "parameters": {"q": 5000}})))
+    with pytest.raises(StreamError, match="id = -1"):
+        stream.handle({"type": "set", "id": -1, "parameters": {"q": 200}})
+    with pytest.raises(StreamError, match="samples = 1.5"):
+        stream.handle({"type": "played", "samples": 1.5})
+    assert stream.applied_id == 0 and stream._playing.voice.parameters.q == 100.0
+    with pytest.raises(StreamError, match="differs from this stream's 48000 Hz"):
+        stream.prepare_start({"model": "twang", "sample_rate": 44100})
+    with pytest.raises(StreamError, match="sample_rate = 200000"):
+        Stream().prepare_start({"model": "twang", "sample_rate": 200000})
+    with pytest.raises(StreamError, match="needs a started stream"):
+        Stream().handle({"type": "trigger"})
