@@ -18,6 +18,7 @@ MODULES = [
     "barsynth.models.allpass",
     "barsynth.dsp.allpass_chain",
     "barsynth.models.fd",
+    "barsynth.models.crossfade",
     "barsynth.physics.grid",
     "barsynth.physics.profiles",
     "barsynth.physics.undercut",
@@ -41,3 +42,16 @@ def test_the_examples_are_really_there():
     module = importlib.import_module("barsynth.models.twang")
     finder = doctest.DocTestFinder()
     assert sum(len(t.examples) for t in finder.find(module)) >= 5
+
+
+def test_the_readmes_library_example_runs(capsys):
+    """The README's Python block, as a user would paste it."""
+    import re
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```python\n(.*?)```", readme, flags=re.S)
+    assert blocks
+    for block in blocks:
+        exec(compile(block, "README.md", "exec"), {})
+    assert len(capsys.readouterr().out.splitlines()) >= 3  # it prints the partials it found
