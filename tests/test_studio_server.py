@@ -194,3 +194,20 @@ def test_a_stream_from_another_site_is_refused(client):
                                                               "origin": "http://evil.example"}):
             pass
     assert refused.value.code == 1008
+
+
+def test_settings_too_slow_to_play_live_are_told_once(client):
+    with ws(client) as socket:
+        socket.send_json({"type": "start", "model": "fd", "sample_rate": 96000,
+                          "parameters": {"points": 400, "oversampling": 8}})
+        assert socket.receive_json()["type"] == "started"
+        socket.send_json({"type": "trigger"})
+        errors, count = [], 0
+        while not errors and count < 200:
+            message = socket.receive()
+            if message.get("text"):
+                errors.append(json.loads(message["text"])["error"])
+            else:
+                count += 1
+                socket.send_json({"type": "played", "samples": count * 256})
+        assert errors and "take longer to compute than to play" in errors[0]

@@ -31,6 +31,7 @@ import asyncio
 import io
 import math
 import sys
+import time
 from collections.abc import Callable, Iterable
 from importlib import resources
 from typing import Any
@@ -55,6 +56,7 @@ SAMPLE_RATES = (22050, 44100, 48000, 96000)
 MAX_STREAMS = 4
 MAX_MESSAGE_BYTES = 16 * 1024
 IDLE_S = 600.0  # a stream that hears nothing from its page for this long is closed
+SLOW_WINDOW = 50  # blocks over which a stream's cost is compared with real time
 DEFAULT_PORT = 8050
 _NO_STORE = {"Cache-Control": "no-store"}
 _STATIC = {"app.js": "text/javascript; charset=utf-8", "worklet.js": "text/javascript; charset=utf-8",
@@ -280,6 +282,30 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
     return app
 
 
+class SlowWatch:
+    """Tells, once per voice, when a stream's settings cost more than real time to play
+    (a finite-difference bar of many points and steps): the page will stutter."""
+
+    def __init__(self) -> None:
+        self.spent: list[float] = []
+        self.told: set[int] = set()
+
+    def too_slow(self, seconds: float, session: Stream) -> bool:
+        self.spent = [*self.spent[-(SLOW_WINDOW - 1):], seconds]
+        budget = session.block / session.sample_rate
+        voice = id(session.voice)
+        if len(self.spent) < SLOW_WINDOW or sum(self.spent) < 0.9 * budget * SLOW_WINDOW or voice in self.told:
+            return False
+        self.told.add(voice)
+        self.spent = []
+        return True
+
+    @staticmethod
+    def message(session: Stream) -> str:
+        return (f"these {session.model_name} settings take longer to compute than to play on this machine, so the "
+                "sound will stutter; use fewer points or steps (points, oversampling) or render a WAV instead")
+
+
 async def _play(socket: WebSocket, session: Stream) -> None:
     """Serve one stream until the page goes: read its messages, send its blocks at its pace."""
     from starlette.websockets import WebSocketDisconnect
@@ -294,11 +320,15 @@ async def _play(socket: WebSocket, session: Stream) -> None:
                 await socket.send_json(text)
 
     async def produce() -> None:
+        slow = SlowWatch()
         while True:
             while session.wants_block():
                 async with busy:
+                    began = time.perf_counter()
                     data = await asyncio.to_thread(session.next_block)
                     refused = session.refused()
+                    if slow.too_slow(time.perf_counter() - began, session):
+                        refused.append(slow.message(session))
                 await send(data=data)
                 for message in refused:
                     await send({"type": "error", "error": message})

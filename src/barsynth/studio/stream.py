@@ -124,6 +124,11 @@ class Stream:
         return self.block * max(1, math.ceil(self.lead_s * self.sample_rate / self.block))
 
     @property
+    def voice(self) -> CrossfadingVoice | None:
+        """The voice that sounds now (None before the first start)."""
+        return self._playing.voice if self._playing else None
+
+    @property
     def model_name(self) -> str | None:
         return self._playing.model.name if self._playing else None
 
