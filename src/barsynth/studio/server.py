@@ -5,7 +5,8 @@ scales, choices); everything sent back is validated by the same table, so a bad 
 gets one line naming the parameter, the value, the allowed range and the unit, with a
 4xx status, and the server keeps serving. Renders are bounded in length
 (``MAX_DURATION_S``) and in number at once (``MAX_RENDERS``; the rest wait up to
-``RENDER_WAIT_S``, then get 503), and run off the event loop. Live streams are
+``RENDER_WAIT_S``, then get 503), and run in worker processes (:mod:`barsynth.studio.work`),
+so they never hold up a live stream. Live streams are
 bounded too (``MAX_STREAMS``; one more is closed with code 1013 and a reason).
 
 HTTP API (JSON in and out; errors are ``{"error": "one line"}``):
@@ -20,18 +21,15 @@ HTTP API (JSON in and out; errors are ``{"error": "one line"}``):
 - ``POST /api/picture`` ``{"model", "parameters", "duration_s", "sample_rate", "width"}``:
   waveform, spectrogram and modes of one strike (:mod:`barsynth.studio.pictures`)
 - ``POST /api/preset-file`` ``{"model", "parameters", "description"}``: a preset file (TOML)
-- ``WebSocket /api/stream``: the live stream (:mod:`barsynth.studio.stream`)
+- ``WebSocket /api/stream``: the live stream (:mod:`barsynth.studio.live`, :mod:`barsynth.studio.stream`)
 
 ``docs/studio.md`` describes every field.
 """
 
 from __future__ import annotations
 
-import asyncio
-import io
 import math
 import sys
-import time
 from collections.abc import Callable, Iterable
 from importlib import resources
 from typing import Any
@@ -44,19 +42,18 @@ from fastapi.responses import JSONResponse, Response
 from ..errors import BarsynthError, ModelError
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_json,
                          shown_address)
-from .pictures import MAX_COLUMNS, mode_rows, picture
+from .live import MAX_MESSAGE_BYTES, play
+from .pictures import MAX_COLUMNS
 from .presets_file import preset_toml
-from .stream import Stream, StreamError, parse_message
+from .stream import Stream
+from .work import MAX_RENDERS, Workers, modes_json, picture_json, render_wav
+
+__all__ = ["MAX_BODY_BYTES", "MAX_RENDERS", "MAX_STREAMS", "create_app", "serve"]
 
 MAX_BODY_BYTES = 16 * 1024
 MAX_DURATION_S = 20.0
-MAX_RENDERS = 2
-RENDER_WAIT_S = 10.0
 SAMPLE_RATES = (22050, 44100, 48000, 96000)
 MAX_STREAMS = 4
-MAX_MESSAGE_BYTES = 16 * 1024
-IDLE_S = 600.0  # a stream that hears nothing from its page for this long is closed
-SLOW_WINDOW = 50  # blocks over which a stream's cost is compared with real time
 DEFAULT_PORT = 8050
 _NO_STORE = {"Cache-Control": "no-store"}
 _STATIC = {"app.js": "text/javascript; charset=utf-8", "worklet.js": "text/javascript; charset=utf-8",
@@ -129,32 +126,14 @@ def _json_safe(value: Any) -> Any:
     return value
 
 
-def wav_bytes(samples: Any, sample_rate: float) -> bytes:
-    import soundfile
-
-    buffer = io.BytesIO()
-    soundfile.write(buffer, samples, int(sample_rate), format="WAV", subtype="PCM_16")
-    return buffer.getvalue()
-
-
-def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
-    """The studio's FastAPI app; ``allowed_hosts`` as for the listening server (None: any)."""
-    renders = asyncio.Semaphore(MAX_RENDERS)
+def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Workers | None = None) -> FastAPI:
+    """The studio's FastAPI app; ``allowed_hosts`` as for the listening server (None: any);
+    ``workers`` run the renders (by default a pool of ``MAX_RENDERS`` worker processes)."""
+    workers = workers if workers is not None else Workers()
     streams: set[Stream] = set()
     hosts = None if allowed_hosts is None else {h.lower() for h in allowed_hosts}
     web = resources.files("barsynth.studio") / "web"
     app = FastAPI(title="barsynth studio", docs_url=None, redoc_url=None, openapi_url=None)
-
-    async def bounded(work: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-        """Run heavy work off the event loop, at most ``MAX_RENDERS`` at once."""
-        try:
-            await asyncio.wait_for(renders.acquire(), RENDER_WAIT_S)
-        except TimeoutError:
-            raise Refused(503, f"the studio is busy ({MAX_RENDERS} renders at once); try again") from None
-        try:
-            return await asyncio.to_thread(work, *args, **kwargs)
-        finally:
-            renders.release()
 
     @app.exception_handler(Refused)
     async def refused(_request: Request, exc: Refused) -> JSONResponse:
@@ -219,8 +198,8 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
         model = _model(wish["model"])
         resolved = _resolved(model, wish.get("parameters"))
         rate, seconds = _rate(wish.get("sample_rate")), _duration(wish.get("duration_s"))
-        samples = await bounded(model.render, resolved, duration_s=seconds, sample_rate=rate)
-        return Response(wav_bytes(samples, rate), media_type="audio/wav",
+        wav = await workers.run(render_wav, model.name, model.table.as_dict(resolved), seconds, rate)
+        return Response(wav, media_type="audio/wav",
                         headers={**_NO_STORE, "Content-Disposition": f'attachment; filename="{model.name}.wav"'})
 
     @app.post("/api/describe")
@@ -229,8 +208,8 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
         model = _model(wish["model"])
         resolved = _resolved(model, wish.get("parameters"))
         rate = _rate(wish.get("sample_rate"))
-        rows = await bounded(mode_rows, model, resolved, rate)
-        return JSONResponse({"model": model.name, "sample_rate": rate, "modes": rows}, headers=_NO_STORE)
+        found = await workers.run(modes_json, model.name, model.table.as_dict(resolved), rate)
+        return Response(found, media_type="application/json", headers=_NO_STORE)
 
     @app.post("/api/picture")
     async def picture_of(request: Request) -> JSONResponse:
@@ -239,9 +218,9 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
         model = _model(wish["model"])
         resolved = _resolved(model, wish.get("parameters"))
         rate, seconds = _rate(wish.get("sample_rate")), _duration(wish.get("duration_s", 1.5))
-        found = await bounded(picture, model, resolved, sample_rate=rate, duration_s=seconds,
-                              width=_width(wish.get("width")))
-        return JSONResponse(found, headers=_NO_STORE)
+        found = await workers.run(picture_json, model.name, model.table.as_dict(resolved), rate, seconds,
+                                  _width(wish.get("width")))
+        return Response(found, media_type="application/json", headers=_NO_STORE)
 
     @app.post("/api/preset-file")
     async def preset_file(request: Request) -> Response:
@@ -276,119 +255,28 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
             return
         session = Stream()
         streams.add(session)
-        await _play(socket, session)
-        streams.discard(session)
+        try:
+            await play(socket, session)
+        finally:
+            streams.discard(session)
 
     return app
-
-
-class SlowWatch:
-    """Tells, once per voice, when a stream's settings cost more than real time to play
-    (a finite-difference bar of many points and steps): the page will stutter."""
-
-    def __init__(self) -> None:
-        self.spent: list[float] = []
-        self.told: set[int] = set()
-
-    def too_slow(self, seconds: float, session: Stream) -> bool:
-        self.spent = [*self.spent[-(SLOW_WINDOW - 1):], seconds]
-        budget = session.block / session.sample_rate
-        voice = id(session.voice)
-        if len(self.spent) < SLOW_WINDOW or sum(self.spent) < 0.9 * budget * SLOW_WINDOW or voice in self.told:
-            return False
-        self.told.add(voice)
-        self.spent = []
-        return True
-
-    @staticmethod
-    def message(session: Stream) -> str:
-        return (f"these {session.model_name} settings take longer to compute than to play on this machine, so the "
-                "sound will stutter; use fewer points or steps (points, oversampling) or render a WAV instead")
-
-
-async def _play(socket: WebSocket, session: Stream) -> None:
-    """Serve one stream until the page goes: read its messages, send its blocks at its pace."""
-    from starlette.websockets import WebSocketDisconnect
-
-    busy, sending, wake = asyncio.Lock(), asyncio.Lock(), asyncio.Event()
-
-    async def send(text: dict | None = None, data: bytes | None = None) -> None:
-        async with sending:
-            if data is not None:
-                await socket.send_bytes(data)
-            else:
-                await socket.send_json(text)
-
-    async def produce() -> None:
-        slow = SlowWatch()
-        while True:
-            while session.wants_block():
-                async with busy:
-                    began = time.perf_counter()
-                    data = await asyncio.to_thread(session.next_block)
-                    refused = session.refused()
-                    if slow.too_slow(time.perf_counter() - began, session):
-                        refused.append(slow.message(session))
-                await send(data=data)
-                for message in refused:
-                    await send({"type": "error", "error": message})
-            wake.clear()
-            if not session.wants_block():
-                await wake.wait()
-
-    async def act(text: str) -> None:
-        if len(text.encode()) > MAX_MESSAGE_BYTES:
-            raise StreamError(f"a stream message is too large; allowed: up to {MAX_MESSAGE_BYTES} bytes")
-        message = parse_message(text)
-        if message["type"] == "start":
-            model, resolved, rate = session.prepare_start(message)
-            voice, gain = await asyncio.to_thread(Stream.build_voice, model, resolved, rate)
-            async with busy:
-                started = session.start(model, voice, gain, rate)
-            await send(started)
-        else:
-            async with busy:
-                session.handle(message)
-
-    producer = asyncio.create_task(produce())
-    try:
-        while True:
-            try:
-                received = await asyncio.wait_for(socket.receive(), IDLE_S)
-            except TimeoutError:
-                await socket.close(code=1001, reason="no message for 10 minutes; the stream is closed")
-                break
-            if received["type"] == "websocket.disconnect":
-                break
-            try:
-                if received.get("text") is None:
-                    raise StreamError("stream messages are JSON text; binary frames are not taken")
-                await act(received["text"])
-            except BarsynthError as exc:
-                await send({"type": "error", "error": str(exc)})
-            wake.set()
-    except (WebSocketDisconnect, RuntimeError):
-        pass  # the page went away mid-send
-    finally:
-        producer.cancel()
-        try:
-            await producer
-        except (asyncio.CancelledError, WebSocketDisconnect, RuntimeError, OSError):
-            pass
 
 
 def serve(*, host: str = "127.0.0.1", port: int = DEFAULT_PORT, echo: Callable[[str], None] = print) -> None:
     """Serve the studio until stopped (Ctrl-C or SIGTERM)."""
     sock = listen_socket(host, port)
+    workers = Workers()
     try:
-        app = create_app(allowed_hosts=hosts_for(host))
+        app = create_app(allowed_hosts=hosts_for(host), workers=workers)
         echo(f"barsynth studio at {shown_address(sock)} (Ctrl-C stops)")
         if sock.getsockname()[0] not in ("127.0.0.1", "::1"):
             echo("barsynth studio: warning: listening beyond this machine; anyone who can reach it can use it")
         sys.stdout.flush()
         config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
-                                ws_max_size=MAX_MESSAGE_BYTES, ws_ping_interval=20.0, ws_ping_timeout=20.0)
+                                ws_max_size=4 * MAX_MESSAGE_BYTES, ws_ping_interval=20.0, ws_ping_timeout=20.0)
         QuietStop(config).run(sockets=[sock])
     finally:
         sock.close()
+        workers.close()
     echo("barsynth studio: stopped")

@@ -129,6 +129,11 @@ class Stream:
         return self._playing.voice if self._playing else None
 
     @property
+    def model(self) -> Any:
+        """The model that sounds now (None before the first start)."""
+        return self._playing.model if self._playing else None
+
+    @property
     def model_name(self) -> str | None:
         return self._playing.model.name if self._playing else None
 
@@ -139,6 +144,12 @@ class Stream:
     def wants_block(self) -> bool:
         """Whether a block should be sent now."""
         return self._running and self.samples_sent - self.samples_played < self.lead
+
+    def blocks_wanted(self) -> int:
+        """How many blocks the page has room for now (0 when the stream rests)."""
+        if not self._running:
+            return 0
+        return max(0, math.ceil((self.lead - (self.samples_sent - self.samples_played)) / self.block))
 
     def _fade(self) -> int:
         return max(1, int(round(DEFAULT_FADE_S * self.sample_rate)))

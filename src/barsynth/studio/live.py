@@ -1,0 +1,171 @@
+"""One page's live stream over a WebSocket: read its messages, send its blocks at its pace.
+
+Three tasks share one :class:`~barsynth.studio.stream.Stream`:
+
+- the reader takes every message as it comes. A ``played`` report only moves a counter,
+  so it is handled at once, even while a new voice is being built; everything else goes,
+  in order, to
+- the commander, which carries out one command at a time. Work that takes long (building
+  a voice for ``start``, trying a ``set`` on a fresh voice first, which also fills the
+  models' design caches) runs in a thread and outside the lock, so the sound goes on
+  meanwhile; only the final swap or change takes the lock;
+- the producer, which sends every block the page has room for, computing them together
+  in one thread hop, and tells the page (once per voice) when its settings cost more
+  than real time to play.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from typing import Any
+
+from ..errors import BarsynthError
+from .stream import Stream, StreamError, parse_message
+
+MAX_MESSAGE_BYTES = 16 * 1024
+IDLE_S = 120.0  # a stream that hears nothing from its page for this long is closed
+SLOW_WINDOW_S = 0.25  # sound over which a stream's cost is compared with real time
+MAX_QUEUED = 64  # commands waiting; a page that floods the stream beyond this is closed
+
+
+class SlowWatch:
+    """Tells, once per voice, when computing a stream's blocks costs more than 90 % of real time."""
+
+    def __init__(self) -> None:
+        self.spent = 0.0  # thread CPU seconds over the window
+        self.sound = 0.0  # seconds of sound over the window
+        self.told: set[int] = set()
+
+    def too_slow(self, cpu_s: float, sound_s: float, voice: Any) -> bool:
+        self.spent += cpu_s
+        self.sound += sound_s
+        if self.sound < SLOW_WINDOW_S:
+            return False
+        slow = self.spent > 0.9 * self.sound and id(voice) not in self.told
+        self.spent = self.sound = 0.0
+        if slow:
+            self.told.add(id(voice))
+        return slow
+
+    @staticmethod
+    def message(model_name: str | None) -> str:
+        return (f"these {model_name} settings take longer to compute than to play on this machine, so the "
+                "sound will stutter; use fewer points or steps (points, oversampling) or render a WAV instead")
+
+
+def _blocks(session: Stream, count: int) -> tuple[list[bytes], float]:
+    """``count`` blocks and the thread CPU time they took (s)."""
+    began = time.thread_time()
+    blocks = [session.next_block() for _ in range(count)]
+    return blocks, time.thread_time() - began
+
+
+def _rehearse(session: Stream, values: dict) -> None:
+    """Build a fresh voice with the changed settings (raises what the change would raise)."""
+    model, voice = session.model, session.voice
+    if model is None or voice is None:
+        return
+    merged = {**model.table.as_dict(voice.parameters), **values}
+    model.voice(merged, sample_rate=session.sample_rate)
+
+
+async def play(socket: Any, session: Stream) -> None:
+    """Serve one stream until the page goes away, falls silent for ``IDLE_S`` or floods it."""
+    from starlette.websockets import WebSocketDisconnect
+
+    busy, sending, wake = asyncio.Lock(), asyncio.Lock(), asyncio.Event()
+    commands: asyncio.Queue = asyncio.Queue()
+
+    async def send(text: dict | None = None, data: bytes | None = None) -> None:
+        async with sending:
+            if data is not None:
+                await socket.send_bytes(data)
+            else:
+                await socket.send_json(text)
+
+    async def produce() -> None:
+        slow = SlowWatch()
+        while True:
+            wanted = session.blocks_wanted()
+            if not wanted:
+                wake.clear()
+                if not session.blocks_wanted():
+                    await wake.wait()
+                continue
+            async with busy:
+                blocks, cpu_s = await asyncio.to_thread(_blocks, session, wanted)
+                refused = session.refused()
+                if slow.too_slow(cpu_s, wanted * session.block / session.sample_rate, session.voice):
+                    refused.append(SlowWatch.message(session.model_name))
+            for data in blocks:
+                await send(data=data)
+            for message in refused:
+                await send({"type": "error", "error": message})
+
+    async def command(message: dict[str, Any]) -> None:
+        kind = message["type"]
+        if kind == "start":
+            model, resolved, rate = session.prepare_start(message)
+            voice, gain = await asyncio.to_thread(Stream.build_voice, model, resolved, rate)
+            async with busy:
+                started = session.start(model, voice, gain, rate)
+            await send(started)
+            return
+        if kind == "set" and isinstance(message.get("parameters"), dict):
+            if session.model is not None:
+                session.model.table.validate(message["parameters"])
+            await asyncio.to_thread(_rehearse, session, message["parameters"])
+        async with busy:
+            if kind == "set":
+                await asyncio.to_thread(session.handle, message)
+            else:
+                session.handle(message)
+
+    async def commander() -> None:
+        while True:
+            message = await commands.get()
+            try:
+                await command(message)
+            except BarsynthError as exc:
+                await send({"type": "error", "error": str(exc)})
+            wake.set()
+
+    tasks = [asyncio.create_task(produce()), asyncio.create_task(commander())]
+    try:
+        while True:
+            try:
+                received = await asyncio.wait_for(socket.receive(), IDLE_S)
+            except TimeoutError:
+                await socket.close(code=1001, reason=f"no message for {IDLE_S:g} s; the stream is closed")
+                break
+            if received["type"] == "websocket.disconnect":
+                break
+            try:
+                text = received.get("text")
+                if text is None:
+                    raise StreamError("stream messages are JSON text; binary frames are not taken")
+                if len(text.encode()) > MAX_MESSAGE_BYTES:
+                    raise StreamError(f"a stream message is too large; allowed: up to {MAX_MESSAGE_BYTES} bytes")
+                message = parse_message(text)
+                if message["type"] == "played":
+                    session.handle(message)
+                elif commands.qsize() >= MAX_QUEUED:
+                    await socket.close(code=1008, reason=f"more than {MAX_QUEUED} messages waiting; the stream "
+                                                         "is closed")
+                    break
+                else:
+                    commands.put_nowait(message)
+            except BarsynthError as exc:
+                await send({"type": "error", "error": str(exc)})
+            wake.set()
+    except (WebSocketDisconnect, RuntimeError):
+        pass  # the page went away mid-send
+    finally:
+        for task in tasks:
+            task.cancel()
+        for task in tasks:
+            try:
+                await task
+            except (asyncio.CancelledError, WebSocketDisconnect, RuntimeError, OSError):
+                pass
