@@ -134,8 +134,9 @@ def test_a_picture_shows_the_sound_of_the_settings(client):
     levels = np.frombuffer(__import__("base64").b64decode(spec["levels"]), np.uint8)
     levels = levels.reshape(spec["bins"], len(spec["times_s"]))
     loudest_row = int(np.argmax(levels[:, :20].max(axis=1)))  # at the start, where every mode rings
-    row_hz = spec["max_frequency_hz"] / spec["bins"]
-    assert abs((loudest_row + 0.5) * row_hz - 1000.0) <= row_hz
+    assert spec["scale"] == "log" and spec["min_frequency_hz"] == 20.0
+    edges = np.geomspace(20.0, spec["max_frequency_hz"], spec["bins"] + 1)
+    assert edges[loudest_row] - 12.0 <= 1000.0 <= edges[loudest_row + 1] + 12.0  # within a band (or a 12 Hz bin)
     assert [m["frequency_hz"] for m in found["modes"]] == pytest.approx([1000.0, 4000.0, 10000.0])  # ratios 1:4:10
     bad = client.post("/api/picture", json={"model": "banded", "width": 5})
     assert bad.status_code == 422 and "width = 5 is out of range" in bad.json()["error"]

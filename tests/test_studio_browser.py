@@ -1,0 +1,458 @@
+"""barsynth studio as someone uses it: Debian's Chromium, driven by Playwright, against
+`barsynth studio` running as a real process.
+
+The page really plays: an AudioContext at 48 kHz (Chromium's fake output when the machine
+has no sound card), the AudioWorklet fed by the WebSocket stream, and the page's own figures
+(window.studio) to check that samples arrive, are played, and that a slider change reaches
+the output within 100 ms. Chromium comes from Debian; Playwright never downloads a browser.
+Screenshots of each stage go to the module's temporary folder, or to $BARSYNTH_SCREENSHOTS.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import re
+import select
+import signal
+import statistics
+import subprocess
+import sys
+import time
+import tomllib
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+from playwright.sync_api import Page, expect, sync_playwright
+
+CHROMIUM = os.environ.get("BARSYNTH_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_ARGS = [  # the closed network refuses Chromium's background connections; don't make them
+    "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
+]
+START_TIMEOUT_S = 120.0  # the first start may compile numba kernels
+STUDIO_COMMAND = [sys.executable, "-m", "barsynth", "studio", "--port", "0"]
+RATE = 48000
+VIEWPORT = {"width": 1400, "height": 900}
+
+
+class Studio:
+    """`python -m barsynth studio --port 0` in a process of its own."""
+
+    def __init__(self, log: Path):
+        self.log = log
+        self.process: subprocess.Popen | None = None
+
+    def start(self) -> str:
+        with open(self.log, "ab") as log:
+            self.process = subprocess.Popen(STUDIO_COMMAND, stdout=subprocess.PIPE, stderr=log, text=True)
+        line = self._first_line()
+        match = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
+        assert match, f"unexpected start-up line {line!r}; log: {self.log.read_text()}"
+        self.url = f"http://127.0.0.1:{match.group(1)}/"
+        with urllib.request.urlopen(self.url + "api/health", timeout=10) as response:
+            assert json.load(response)["ok"] is True
+        return self.url
+
+    def _first_line(self) -> str:
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([self.process.stdout], [], [], 0.5)
+            if ready:
+                return self.process.stdout.readline()
+            if self.process.poll() is not None:
+                pytest.fail(f"studio exited with {self.process.returncode}: {self.log.read_text()}")
+        pytest.fail("studio did not start in time")
+
+    def stop(self) -> int | None:
+        if self.process and self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            self.process.wait(timeout=20)
+        if self.process:
+            self.process.stdout.close()
+            return self.process.returncode
+        return None
+
+    def post(self, path: str, body: dict) -> dict:
+        request = urllib.request.Request(self.url + path.lstrip("/"), data=json.dumps(body).encode(),
+                                         headers={"Content-Type": "application/json"})
+        with urllib.request.urlopen(request, timeout=30) as response:
+            return json.load(response)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not os.access(CHROMIUM, os.X_OK):
+        pytest.fail(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium), "
+                    "as the README's test command does")
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()
+
+
+@pytest.fixture(scope="module")
+def studio(tmp_path_factory):
+    server = Studio(tmp_path_factory.mktemp("studio") / "studio.log")
+    server.start()
+    yield server
+    assert server.stop() == 0  # SIGTERM stops the studio cleanly
+
+
+@pytest.fixture(scope="module")
+def shots(tmp_path_factory):
+    folder = Path(os.environ.get("BARSYNTH_SCREENSHOTS") or tmp_path_factory.mktemp("screenshots"))
+    folder.mkdir(parents=True, exist_ok=True)
+
+    def shot(page: Page, name: str) -> Path:
+        path = folder / f"studio-{name}.png"
+        page.screenshot(path=path, full_page=True)
+        assert path.stat().st_size > 20000  # a real picture of a page, not an empty one
+        return path
+    return shot
+
+
+def until(page: Page, script: str, timeout_s: float = 10.0, what: str = "") -> None:
+    """Poll a page expression (wait_for_function would evaluate a string, which the page's CSP forbids)."""
+    deadline = time.monotonic() + timeout_s
+    while not page.evaluate(script):
+        assert time.monotonic() < deadline, f"timed out waiting for {what or script}: " + page.evaluate(
+            "() => JSON.stringify({state: studio.state, blocks: studio.blocksReceived, played: studio.samplesPlayed, "
+            "errors: studio.errors, picture: studio.lastPicture && studio.lastPicture.model})")
+        page.wait_for_timeout(25)
+
+
+def figures(page: Page) -> dict:
+    return page.evaluate("() => ({state: studio.state, blocks: studio.blocksReceived, played: studio.samplesPlayed, "
+                         "maxBuffered: studio.maxBufferedFrames, underruns: studio.underruns, "
+                         "latencies: studio.latencies.slice(), errors: studio.errors.slice(), sets: studio.sets})")
+
+
+def picture(page: Page) -> dict:
+    return page.evaluate("() => studio.lastPicture")
+
+
+def watch(page: Page, errors: list[str]) -> None:
+    """Collect the page's uncaught errors and anything its Content-Security-Policy refused."""
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.on("console", lambda msg: errors.append(msg.text) if "Content Security Policy" in msg.text else None)
+
+
+def open_studio(browser, url: str, errors: list[str]):
+    context = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
+    page = context.new_page()
+    watch(page, errors)
+    page.goto(url)
+    until(page, "() => window.studio && studio.ready && studio.lastPicture !== null", 30, "the first pictures")
+    return context, page
+
+
+def pictures_of(page: Page, model: str, name: str | None = None, value: float | None = None,
+                timeout_s: float = 15.0) -> dict:
+    """Wait until the pictures show ``model`` (with parameter ``name`` at ``value``) and return them."""
+    check = f"p.model === {json.dumps(model)}"
+    if name is not None:
+        check += f" && p.values && Math.abs(p.values[{json.dumps(name)}] - {value}) < 1e-9"
+    until(page, f"() => {{ const p = studio.lastPicture; return p !== null && {check}; }}", timeout_s,
+          f"pictures of {model} {name or ''}")
+    return picture(page)
+
+
+def table_rows(page: Page) -> list[list[str]]:
+    return page.locator("#mode-table tbody tr").evaluate_all(
+        "rows => rows.map(r => [...r.cells].map(c => c.textContent.trim()))")
+
+
+def grows(page: Page, key: str, timeout_s: float = 5.0, by: int = 1) -> int:
+    """Wait until window.studio[key] has grown by ``by``; returns the new value."""
+    start = page.evaluate(f"() => studio.{key}")
+    until(page, f"() => studio.{key} >= {start + by}", timeout_s, f"studio.{key} to grow from {start}")
+    return page.evaluate(f"() => studio.{key}")
+
+
+def louder_over(modes: list[dict], duration_s: float) -> dict:
+    """The mode that rings loudest over a file of ``duration_s``: its gain times its decay's
+    integral (a long-ringing low mode beats a short loud one in the spectrum)."""
+    def weight(mode: dict) -> float:
+        decay = math.log(1000.0) / mode["t60_s"]
+        return abs(mode["gain"]) * (1.0 - math.exp(-decay * duration_s)) / decay
+    return max(modes, key=weight)
+
+
+def test_a_twang_played_live_changed_saved_and_shared(browser, studio, shots):
+    errors: list[str] = []
+    context, page = open_studio(browser, studio.url, errors)
+    context.grant_permissions(["clipboard-read", "clipboard-write"], origin=studio.url.rstrip("/"))
+    expect(page).to_have_title("barsynth studio")
+    models = page.locator("#model option").all_inner_texts()
+    assert models == ["twang", "farnell", "banded", "allpass", "fd"]
+    page.select_option("#model", "twang")
+    first = pictures_of(page, "twang", "length_m", 0.3)
+
+    # The controls come from the table: one per parameter, log sliders where the scale is log.
+    table = json.load(urllib.request.urlopen(studio.url + "api/models", timeout=10))["models"][0]["parameters"]
+    for row in table:
+        control = page.locator(f"#param-{row['name']}")
+        expect(control).to_have_count(1)
+        assert row["doc"] in control.get_attribute("title")
+    assert page.locator("#param-thickness_m").get_attribute("class") == "log"
+    expect(page.locator("#param-gain_mapping")).to_have_value("linear")
+    expect(page.locator("#num-length_m")).to_have_value("0.3")
+    expect(page.locator("#param-length_m")).to_have_value(str(round(1000 * (0.3 - 0.05) / 0.95)))
+
+    # The twang's 18 modes in its three groups, in the plot's data and the table.
+    assert first["modes"] == 18
+    assert first["groups"] == {"full-cantilever": 6, "short-cantilever": 6, "free-bar": 6}
+    assert first["spectrogramHash"] and 0.8 < first["waveformPeak"] <= 1.0
+    rows = table_rows(page)
+    assert len(rows) == 18 and {r[1] for r in rows} == {"full-cantilever", "short-cantilever", "free-bar"}
+    expect(page.locator("#mode-table caption")).to_contain_text("18 modes of twang in 3 groups")
+    shots(page, "01-twang-loaded")
+
+    # Play: the stream starts and strikes; blocks arrive and are played.
+    page.click("#play")
+    until(page, "() => studio.state === 'playing' && studio.blocksReceived > 20 && studio.samplesPlayed > 9600",
+          10, "the live sound")
+    page.wait_for_timeout(300)
+    shots(page, "02-twang-playing")
+
+    # Move the length slider, as a hand would: steps a while apart, then a quick run of key presses.
+    slider = page.locator("#param-length_m")
+    for position in (300, 260, 230, 200, 180, 165):
+        blocks = figures(page)["blocks"]
+        slider.fill(str(position))
+        page.wait_for_timeout(220)
+        assert figures(page)["blocks"] > blocks  # new audio keeps coming
+    slider.focus()
+    for _ in range(7):
+        page.keyboard.press("ArrowLeft")  # 165 -> 158
+        page.wait_for_timeout(12)
+    expect(page.locator("#num-length_m")).to_have_value("0.2001")
+    grows(page, "blocksReceived", 3, 20)
+    changed = pictures_of(page, "twang", "length_m", 0.2001)
+    assert changed["spectrogramHash"] != first["spectrogramHash"]
+    assert table_rows(page)[0][2] != rows[0][2]  # the lowest mode moved up with a shorter ruler
+    assert changed["table"][0]["frequency_hz"] > 1.9 * first["table"][0]["frequency_hz"]
+    page.wait_for_timeout(400)
+    live = figures(page)
+    assert live["state"] == "playing" and live["errors"] == []
+    assert live["sets"] >= 6 and len(live["latencies"]) >= 6, live
+    median = statistics.median(live["latencies"])
+    assert median < 100.0, f"a change is heard after {median:.0f} ms (median of {live['latencies']})"
+    assert 0 < live["maxBuffered"] < 0.1 * RATE, live
+    print(f"live twang: {live['sets']} changes sent, heard after {median:.0f} ms (median; "
+          f"{min(live['latencies']):.0f} to {max(live['latencies']):.0f} ms), at most "
+          f"{live['maxBuffered']} samples buffered, {live['underruns']} dropouts, {live['blocks']} blocks")
+    shots(page, "03-twang-changed")
+
+    # Re-trigger while it rings (the t key and the button); it keeps sounding; then stop.
+    page.locator("body").click(position={"x": 5, "y": 880})  # away from any text box
+    page.keyboard.press("t")
+    grows(page, "blocksReceived", 3, 20)
+    page.click("#trigger")
+    grows(page, "samplesPlayed", 3, RATE // 10)
+    page.click("#stop")
+    until(page, "() => studio.state === 'idle'", 3)
+    page.wait_for_timeout(300)
+    stopped = figures(page)["blocks"]
+    page.wait_for_timeout(300)
+    assert figures(page)["blocks"] == stopped  # nothing comes after a stop
+    expect(page.locator("#live")).to_have_text("stopped")
+
+    # Download the WAV of these settings.
+    page.fill("#duration", "2")
+    with page.expect_download() as info:
+        page.click("#download")
+    download = info.value
+    assert download.suggested_filename == "twang.wav"
+    samples, rate = soundfile.read(io.BytesIO(Path(download.path()).read_bytes()))
+    assert rate == RATE and samples.shape == (2 * RATE,)
+    assert 20 * np.log10(np.max(np.abs(samples))) == pytest.approx(-1.0, abs=0.2)
+    spectrum = np.abs(np.fft.rfft(samples * np.hanning(samples.size)))
+    strongest = np.fft.rfftfreq(samples.size, 1 / rate)[np.argmax(spectrum)]
+    loudest = louder_over(changed["table"], 2.0)
+    assert strongest == pytest.approx(loudest["frequency_hz"], abs=max(1.0, 0.03 * loudest["frequency_hz"]))
+    described = studio.post("/api/describe", {"model": "twang", "parameters": {"length_m": 0.2001}})["modes"]
+    assert [m["frequency_hz"] for m in described] == pytest.approx([m["frequency_hz"] for m in changed["table"]])
+
+    # A length the server refuses: its message, and no file.
+    page.fill("#duration", "30")
+    page.click("#download")
+    expect(page.locator("#message")).to_contain_text("duration_s = 30 is out of range; allowed: 0.01 to 20 s")
+    page.fill("#duration", "2")
+
+    # Copy link: the address holds the model and the changed value; a new page restores it.
+    page.select_option("#param-gain_mapping", "log")
+    page.click("#share")
+    link = page.locator("#share-url").input_value()
+    assert link.startswith(studio.url) and "model=twang" in link
+    assert "length_m=0.2001" in link and "gain_mapping=log" in link and "thickness_m" not in link
+    assert page.url == link
+    assert page.evaluate("() => navigator.clipboard.readText()") == link  # copied
+    other = context.new_page()
+    watch(other, errors)
+    other.goto(link)
+    until(other, "() => window.studio && studio.ready", 20)
+    expect(other.locator("#model")).to_have_value("twang")
+    expect(other.locator("#num-length_m")).to_have_value("0.2001")
+    expect(other.locator("#param-length_m")).to_have_value("158")
+    expect(other.locator("#param-gain_mapping")).to_have_value("log")
+    restored = pictures_of(other, "twang", "length_m", 0.2001)
+    assert restored["values"]["gain_mapping"] == "log"
+    shots(other, "04-twang-from-link")
+    other.close()
+
+    # A link with a preset keeps it; only what differs from the preset is in the address.
+    page.select_option("#preset", "steel-30cm")
+    pictures_of(page, "twang", "length_m", 0.3)
+    page.locator("#num-q").fill("250")
+    page.locator("#num-q").press("Enter")
+    expect(page.locator("#param-q")).to_have_value(str(round(1000 * math.log(250 / 50) / math.log(800 / 50))))
+    page.click("#share")
+    link = page.locator("#share-url").input_value()
+    assert "preset=steel-30cm" in link and "q=250" in link and "youngs_modulus_pa" not in link
+    other = context.new_page()
+    watch(other, errors)
+    other.goto(link)
+    until(other, "() => window.studio && studio.ready", 20)
+    expect(other.locator("#preset")).to_have_value("steel-30cm")
+    expect(other.locator("#num-q")).to_have_value("250")
+    expect(other.locator("#num-youngs_modulus_pa")).to_have_value("2e11")  # the preset's, not the default
+    other.close()
+
+    # Save preset: a TOML file whose [parameters] hold the values.
+    page.fill("#description", "stiff steel ruler")
+    with page.expect_download() as info:
+        page.click("#save-preset")
+    assert info.value.suggested_filename == "twang.toml"
+    preset = tomllib.loads(Path(info.value.path()).read_text())
+    assert preset["preset"]["description"] == "stiff steel ruler"
+    assert preset["parameters"]["q"] == 250.0 and preset["parameters"]["youngs_modulus_pa"] > 1e11
+
+    # A bad typed value: the server's one line, naming the parameter; the control goes back.
+    box = page.locator("#num-length_m")
+    box.fill("5")
+    box.press("Enter")
+    message = page.locator("#message")
+    expect(message).to_be_visible()
+    expect(message).to_have_attribute("role", "alert")
+    expect(message).to_contain_text("length_m = 5")
+    expect(message).to_contain_text("0.05 to 1 m")
+    expect(box).to_have_value("0.3")
+    assert page.evaluate("() => studio.values.length_m") == 0.3
+    assert any("length_m" in e for e in page.evaluate("() => studio.errors"))
+    shots(page, "05-bad-value")
+    box.fill("0.25")
+    box.press("Enter")
+    expect(message).to_be_hidden()
+    assert errors == []
+    context.close()
+
+
+@pytest.mark.parametrize("model", ["farnell", "banded", "allpass", "fd"])
+def test_every_other_model_has_its_sliders_and_pictures(browser, studio, shots, model):
+    errors: list[str] = []
+    context, page = open_studio(browser, studio.url, errors)
+    page.select_option("#model", model)
+    shown = pictures_of(page, model, timeout_s=20)
+    entry = next(m for m in json.load(urllib.request.urlopen(studio.url + "api/models", timeout=10))["models"]
+                 if m["name"] == model)
+    assert page.locator("#controls [id^=param-]").count() == len(entry["parameters"])
+    for row in entry["parameters"]:
+        expect(page.locator(f"#param-{row['name']}")).to_have_count(1)
+    described = studio.post("/api/describe", {"model": model, "parameters": {}})["modes"]
+    assert shown["modes"] == len(described) > 0
+    assert shown["spectrogramHash"] and 0.8 < shown["waveformPeak"] <= 1.0
+    assert page.locator("#mode-table tbody tr").count() == len(described)
+    if any("error_cents" in m for m in described):
+        expect(page.locator("#mode-table thead")).to_contain_text("error (cents)")
+
+    if model == "banded":  # a brief live run: struck, re-struck by key, bowed and released, a new preset
+        page.click("#play")
+        until(page, "() => studio.blocksReceived > 20 && studio.samplesPlayed > 9600", 10, "banded's live sound")
+        page.keyboard.press(" ")
+        grows(page, "blocksReceived", 3, 20)
+        page.select_option("#param-excitation", "bow")
+        page.locator("body").click(position={"x": 5, "y": 880})
+        page.keyboard.press("t")  # a bow stroke...
+        grows(page, "samplesPlayed", 3, RATE // 5)
+        page.keyboard.press("r")  # ...released
+        grows(page, "blocksReceived", 3, 20)
+        page.select_option("#preset", "marimba")
+        pictures_of(page, model)
+        grows(page, "blocksReceived", 3, 20)
+        assert page.evaluate("() => studio.state") == "playing"
+        page.keyboard.press("Escape")
+        until(page, "() => studio.state === 'idle'", 3)
+        assert page.evaluate("() => studio.errors") == []
+    if model == "fd":  # a choice changes the pictures
+        before = shown["spectrogramHash"]
+        page.select_option("#param-bc", "clamped-free")
+        until(page, "() => studio.lastPicture.values && studio.lastPicture.values.bc === 'clamped-free'", 20)
+        assert picture(page)["spectrogramHash"] != before
+    shots(page, f"06-{model}")
+    assert errors == []
+    context.close()
+
+
+WORKLET_RUN = """async () => {
+  // The page's worklet in an OfflineAudioContext, fed blocks of 0.5 at chosen render quanta.
+  const rate = 48000, Q = 128;
+  const ctx = new OfflineAudioContext(1, Q * 24, rate);
+  await ctx.audioWorklet.addModule("/static/worklet.js");
+  const node = new AudioWorkletNode(ctx, "barsynth-stream",
+    { numberOfInputs: 0, numberOfOutputs: 1, outputChannelCount: [1] });
+  node.connect(ctx.destination);
+  const posted = [];
+  node.port.onmessage = (event) => posted.push(event.data);
+  const block = (id) => {
+    const buffer = new ArrayBuffer(8 + 256 * 4);
+    new Float32Array(buffer, 8).fill(0.5);
+    node.port.postMessage({ type: "block", buffer, offset: 8, setId: id }, [buffer]);
+  };
+  const pause = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+  const at = (quantum, work) => ctx.suspend(quantum * Q / rate).then(async () => {
+    work();
+    await pause(40);  // the message reaches the worklet before rendering goes on
+    ctx.resume();
+  });
+  block(0); block(0); block(1);  // 6 quanta, then the buffer runs dry
+  await pause(40);
+  at(10, () => { block(2); block(2); });  // back after 4 quanta of silence
+  at(12, () => { block(3); block(3); block(3); });
+  at(15, () => node.port.postMessage({ type: "stop" }));
+  const out = await ctx.startRendering();
+  return { out: Array.from(out.getChannelData(0)), posted };
+}"""
+
+
+def test_the_worklet_fades_out_when_it_runs_dry_fades_back_in_and_fades_out_at_a_stop(browser, studio):
+    """The worklet on its own, in an OfflineAudioContext: no step anywhere in its output."""
+    context = browser.new_context()
+    page = context.new_page()
+    page.goto(studio.url)
+    run = page.evaluate(WORKLET_RUN)
+    context.close()
+    out = np.array(run["out"])
+    q, ramp = 128, np.arange(128)
+    expected = np.zeros(24 * q)
+    expected[:q] = 0.5 * ramp / q  # the start fades in over 128 frames
+    expected[q:5 * q] = 0.5
+    expected[5 * q:6 * q] = 0.5 * (1 - (ramp + 1) / q)  # the last quantum buffered fades to zero
+    expected[10 * q:11 * q] = 0.5 * ramp / q  # samples are back: a fade-in
+    expected[11 * q:15 * q] = 0.5
+    stop = 480  # 10 ms at 48 kHz
+    expected[15 * q:15 * q + stop] = 0.5 * (stop - 1 - np.arange(stop)) / stop
+    assert out == pytest.approx(expected, abs=1e-6)
+    assert np.max(np.abs(np.diff(out))) <= 0.5 / 128 + 1e-6  # no click
+    posted = run["posted"]
+    assert [m["heard"] for m in posted if "heard" in m] == [0, 1, 2, 3]
+    assert sum(1 for m in posted if m.get("underrun")) == 1
+    # Frames taken from the buffer, reported every 256: 6 quanta, then 5 more before the stop.
+    assert [m["played"] for m in posted if "played" in m and "stopped" not in m] == [256, 512, 768, 1024, 1280]
+    assert posted[-1] == {"stopped": True, "played": 11 * q + stop}
