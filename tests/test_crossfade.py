@@ -151,3 +151,17 @@ def test_a_combination_refused_after_the_fade_is_dropped_and_reported():
     x = voice.process(30 * MS)
     assert np.all(np.isfinite(x)) and voice.parameters.length_m == 0.3
     assert voice.refused and "no mode" in voice.refused[0]
+
+
+def test_triggers_during_a_restart_fade_make_one_restart_after_it():
+    model = get_model("twang")
+    voice = CrossfadingVoice(model.voice(BASE["twang"], sample_rate=RATE))
+    voice.trigger()
+    voice.process(100)
+    voice.trigger()  # a restart: a 10 ms fade begins
+    for _ in range(20000):
+        voice.trigger()
+    voice.set_parameters(q=300.0)
+    assert len(voice._waiting) == 2
+    voice.process(30 * MS)
+    assert voice.parameters.q == 300.0 and not voice._waiting

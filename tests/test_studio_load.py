@@ -436,3 +436,71 @@ def test_at_most_two_renders_run_and_a_third_waits_then_gets_503(in_process, mon
             assert r.status_code == 200 and soundfile.read(io.BytesIO(r.content))[0].size == 9600
 
     _run(scenario(), timeout=60)
+
+
+# -- stopping: no render holds the server up, no worker outlives it ------------------------------
+def _studio_with_workers():
+    import subprocess
+
+    process = subprocess.Popen([sys.executable, "-m", "barsynth", "studio", "--port", "0"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    line = process.stdout.readline()
+    url = line.split(" at ")[1].split()[0]
+    with httpx.Client(base_url=url, timeout=60, trust_env=False) as client:  # starts both workers
+        for _ in range(2):
+            assert client.post("/api/render", json={"model": "twang", "duration_s": 0.1}).status_code == 200
+    return process, url
+
+
+def _children(pid: int) -> list[int]:
+    found = Path(f"/proc/{pid}/task/{pid}/children")
+    return [int(p) for p in found.read_text().split()] if found.exists() else []
+
+
+def _gone(pids: list[int], within_s: float) -> bool:
+    deadline = time.monotonic() + within_s
+    while time.monotonic() < deadline:
+        if not any(Path(f"/proc/{p}").exists() and "Z" not in Path(f"/proc/{p}/stat").read_text().split()[2]
+                   for p in pids):
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def test_sigterm_during_a_long_render_stops_the_studio_and_its_workers_quickly():
+    import signal
+
+    process, url = _studio_with_workers()
+    workers = _children(process.pid)
+    assert workers, "the render workers should be child processes"
+
+    def long_render():
+        with httpx.Client(base_url=url, timeout=60, trust_env=False) as client:
+            try:
+                client.post("/api/render", json={"model": "fd", "parameters": {"points": 300, "oversampling": 8},
+                                                 "duration_s": 20.0, "sample_rate": 96000})
+            except httpx.HTTPError:
+                pass  # cut off by the stop: expected
+
+    thread = threading.Thread(target=long_render, daemon=True)
+    thread.start()
+    time.sleep(1.0)
+    began = time.monotonic()
+    process.send_signal(signal.SIGTERM)
+    process.wait(timeout=15)
+    assert time.monotonic() - began < 6.0
+    assert _gone(workers, 5.0)
+    process.stdout.close()
+    process.stderr.close()
+
+
+def test_workers_end_when_the_studio_is_killed():
+    import signal
+
+    process, _ = _studio_with_workers()
+    workers = _children(process.pid)
+    process.send_signal(signal.SIGKILL)
+    process.wait(timeout=10)
+    assert _gone(workers, 5.0)
+    process.stdout.close()
+    process.stderr.close()

@@ -215,3 +215,76 @@ def test_settings_too_slow_to_play_live_are_told_once(client):
                 count += 1
                 socket.send_json({"type": "played", "samples": count * 256})
         assert errors and "take longer to compute than to play" in errors[0]
+        for more in range(count, count + 150):  # and only once
+            message = socket.receive()
+            assert not message.get("text"), message["text"]
+            socket.send_json({"type": "played", "samples": more * 256})
+
+
+def test_huge_numbers_unknown_paths_and_odd_descriptions_get_one_line(client):
+    r = client.post("/api/picture", content=b'{"model": "twang", "width": 1e400}',
+                    headers={"content-type": "application/json"})
+    assert r.status_code == 422 and "width = inf is out of range" in r.json()["error"]
+    assert client.get("/api/nothing").json()["error"].startswith("Not Found")
+    assert client.get("/api/render").status_code == 405 and "error" in client.get("/api/render").json()
+    r = client.post("/api/preset-file", json={"model": "twang", "parameters": {}, "description": "bad\u007fchar"})
+    assert tomllib.loads(r.text)["preset"]["description"] == "bad\u007fchar"
+    r = client.post("/api/preset-file", content='{"model": "twang", "parameters": {}, "description": "\\ud800"}',
+                    headers={"content-type": "application/json"})
+    assert r.status_code == 422 and "description must be text" in r.json()["error"]
+
+
+def test_a_page_of_another_port_may_not_open_a_stream(client):
+    from starlette.websockets import WebSocketDisconnect
+
+    for origin in ("http://127.0.0.1:3000", "http://localhost:8000"):
+        with pytest.raises(WebSocketDisconnect):
+            with client.websocket_connect("/api/stream", headers={"host": "127.0.0.1:8000", "origin": origin}):
+                pass
+    with client.websocket_connect("/api/stream", headers={"host": "127.0.0.1:8000",
+                                                          "origin": "http://127.0.0.1:8000"}) as socket:
+        socket.send_json({"type": "start", "model": "twang"})
+        assert socket.receive_json()["type"] == "started"
+
+
+def test_a_dragged_slider_of_a_slow_model_is_merged_not_queued(client):
+    """An allpass change needs a new design (about 0.1 to 0.3 s); 200 sets sent at once are merged
+    into a few, the stream stays open and the last value is applied."""
+    import struct
+
+    with ws(client) as socket:
+        socket.send_json({"type": "start", "model": "allpass", "sample_rate": 48000})
+        assert socket.receive_json()["type"] == "started"
+        socket.send_json({"type": "trigger"})
+        for k in range(1, 201):
+            socket.send_json({"type": "set", "id": k, "parameters": {"q": 100.0 + 2 * k}})
+        seen, played = 0, 0
+        while seen != 200 and played < 2000:
+            played += 1
+            socket.send_json({"type": "played", "samples": played * 256})
+            seen = struct.unpack("<II", blocks(socket, 1)[0][:8])[1]
+        assert seen == 200
+
+
+def test_a_huge_id_gets_an_error_and_the_stream_goes_on(client):
+    import struct
+
+    with ws(client) as socket:
+        socket.send_json({"type": "start", "model": "banded", "sample_rate": 48000})
+        socket.receive_json()
+        socket.send_text('{"type": "set", "id": 1e400, "parameters": {"level_db": -3}}')
+        socket.send_text('{"type": "played", "samples": 1e400}')
+        errors = []
+        while len(errors) < 2:
+            message = socket.receive()
+            if message.get("text"):
+                errors.append(json.loads(message["text"])["error"])
+        assert all("= inf is out of range" in e for e in errors), errors
+        socket.send_json({"type": "set", "id": 3, "parameters": {"level_db": -6}})
+        socket.send_json({"type": "trigger"})
+        seen, played = 0, 6
+        while seen != 3 and played < 200:  # the page plays on; the change lands
+            played += 1
+            socket.send_json({"type": "played", "samples": played * 256})
+            seen = struct.unpack("<II", blocks(socket, 1)[0][:8])[1]
+        assert seen == 3

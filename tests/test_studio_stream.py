@@ -156,3 +156,51 @@ def test_bad_messages_are_refused_and_change_nothing():
         Stream().prepare_start({"model": "twang", "sample_rate": 200000})
     with pytest.raises(StreamError, match="needs a started stream"):
         Stream().handle({"type": "trigger"})
+
+
+def test_a_jump_from_very_quiet_to_very_loud_never_reaches_full_scale():
+    """The gain probe of a quiet voice gives a large gain; the limiter's ramp must not let the
+    first samples of a +100 dB jump through."""
+    for model_name in ("banded", "allpass"):
+        stream = started(model_name, {"level_db": -60.0})
+        stream.handle({"type": "trigger"})
+        before, _ = play(stream, 0.1)
+        stream.handle({"type": "set", "id": 1, "parameters": {"level_db": 40.0}})
+        after, _ = play(stream, 0.3)
+        assert np.max(np.abs(after)) <= LIMIT + 1e-6, model_name
+        assert np.all(np.isfinite(after))
+
+
+def test_voices_fading_out_are_bounded_however_often_a_page_starts():
+    stream = started("twang")
+    stream.handle({"type": "trigger"})
+    model, resolved, rate = stream.prepare_start({"model": "twang", "sample_rate": RATE})
+    for _ in range(50):
+        stream.start(model, *Stream.build_voice(model, resolved, rate), rate)
+    assert len(stream._leaving) <= 4
+    x, _ = play(stream, 0.05)
+    assert np.all(np.isfinite(x)) and not stream._leaving
+
+
+def test_a_trigger_during_the_stop_fade_lets_the_fade_finish_beside_the_new_strike():
+    for model_name in ("twang", "banded"):
+        stream = started(model_name)
+        stream.handle({"type": "trigger"})
+        ringing, _ = play(stream, 0.3)
+        stream.handle({"type": "stop"})
+        fading, _ = play(stream, 0.003)  # one block of the 10 ms fade
+        stream.handle({"type": "trigger"})
+        after, _ = play(stream, 0.02)
+        x = np.concatenate([ringing[-480:], fading, after])
+        steady = largest_step(ringing[-960:])
+        fresh = started(model_name)
+        fresh.handle({"type": "trigger"})
+        attack = largest_step(np.concatenate([[0.0], play(fresh, 0.02)[0]]))  # from silence: its onset too
+        assert largest_step(x) <= 1.2 * (steady + attack), model_name
+
+
+def test_huge_numbers_in_messages_are_refused_not_crashed_on():
+    stream = started("twang")
+    for message in ({"type": "played", "samples": float("inf")}, {"type": "set", "id": 1e400, "parameters": {}}):
+        with pytest.raises(StreamError, match="out of range"):
+            stream.handle(message)

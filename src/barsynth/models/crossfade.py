@@ -13,8 +13,9 @@ the change, so their gains sum to one). Both paths are continuous, so their mix 
 - ``trigger``: a voice whose trigger restarts the sound (``TRIGGER_RESTARTS``: the
   twang and Farnell's twang, which restart their phasors and empty their filters) rings
   on in a copy that fades out while the new note starts at once, at full level, with its
-  own attack; a voice whose strikes add to what rings (banded, all-pass,
-  finite-difference) is struck as it is, with no copy.
+  own attack (more triggers during that fade make one more restart after it); a voice
+  whose strikes add to what rings (banded, all-pass, finite-difference) is struck as it
+  is, with no copy.
 - ``release`` goes straight to the voice.
 
 With no event pending the output is the voice's own, sample for sample.
@@ -113,8 +114,9 @@ class CrossfadingVoice:
             self.voice.trigger()  # strikes add to what rings: strike both sides of a fade alike
             if self._old is not None:
                 self._old.trigger()
-        elif self._old is not None:
-            self._waiting.append(("trigger", {}))  # the mix of a fade cannot be copied: after it
+        elif self._old is not None:  # the mix of a fade cannot be copied: after it (once, however often asked)
+            if not any(kind == "trigger" for kind, _ in self._waiting):
+                self._waiting.append(("trigger", {}))
         else:
             self._old, self._done, self._restart = copy.deepcopy(self.voice), 0, True
             self.voice.trigger()

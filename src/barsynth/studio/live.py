@@ -5,7 +5,9 @@ Three tasks share one :class:`~barsynth.studio.stream.Stream`:
 - the reader takes every message as it comes. A ``played`` report only moves a counter,
   so it is handled at once, even while a new voice is being built; everything else goes,
   in order, to
-- the commander, which carries out one command at a time. Work that takes long (building
+- the commander, which carries out one command at a time (``set`` messages that arrive
+  while one waits are merged into it, so a dragged slider never builds a queue, even for a
+  model whose every change takes a new design). Work that takes long (building
   a voice for ``start``, trying a ``set`` on a fresh voice first, which also fills the
   models' design caches) runs in a thread and outside the lock, so the sound goes on
   meanwhile; only the final swap or change takes the lock;
@@ -17,6 +19,8 @@ Three tasks share one :class:`~barsynth.studio.stream.Stream`:
 from __future__ import annotations
 
 import asyncio
+import collections
+import logging
 import time
 from typing import Any
 
@@ -28,17 +32,20 @@ IDLE_S = 120.0  # a stream that hears nothing from its page for this long is clo
 SLOW_WINDOW_S = 0.25  # sound over which a stream's cost is compared with real time
 MAX_QUEUED = 64  # commands waiting; a page that floods the stream beyond this is closed
 
+log = logging.getLogger("barsynth.studio")
+
 
 class SlowWatch:
-    """Tells, once per voice, when computing a stream's blocks costs more than 90 % of real time."""
+    """Tells, once per voice, when computing a stream's blocks takes more than 90 % of real time
+    (by the clock in the computing thread, so a machine too busy to keep up counts too)."""
 
     def __init__(self) -> None:
-        self.spent = 0.0  # thread CPU seconds over the window
+        self.spent = 0.0  # seconds spent computing over the window
         self.sound = 0.0  # seconds of sound over the window
         self.told: set[int] = set()
 
-    def too_slow(self, cpu_s: float, sound_s: float, voice: Any) -> bool:
-        self.spent += cpu_s
+    def too_slow(self, spent_s: float, sound_s: float, voice: Any) -> bool:
+        self.spent += spent_s
         self.sound += sound_s
         if self.sound < SLOW_WINDOW_S:
             return False
@@ -55,10 +62,10 @@ class SlowWatch:
 
 
 def _blocks(session: Stream, count: int) -> tuple[list[bytes], float]:
-    """``count`` blocks and the thread CPU time they took (s)."""
-    began = time.thread_time()
+    """``count`` blocks and the time they took to compute (s)."""
+    began = time.perf_counter()
     blocks = [session.next_block() for _ in range(count)]
-    return blocks, time.thread_time() - began
+    return blocks, time.perf_counter() - began
 
 
 def _rehearse(session: Stream, values: dict) -> None:
@@ -74,8 +81,8 @@ async def play(socket: Any, session: Stream) -> None:
     """Serve one stream until the page goes away, falls silent for ``IDLE_S`` or floods it."""
     from starlette.websockets import WebSocketDisconnect
 
-    busy, sending, wake = asyncio.Lock(), asyncio.Lock(), asyncio.Event()
-    commands: asyncio.Queue = asyncio.Queue()
+    busy, sending, wake, queued = asyncio.Lock(), asyncio.Lock(), asyncio.Event(), asyncio.Event()
+    commands: collections.deque = collections.deque()
 
     async def send(text: dict | None = None, data: bytes | None = None) -> None:
         async with sending:
@@ -124,12 +131,36 @@ async def play(socket: Any, session: Stream) -> None:
 
     async def commander() -> None:
         while True:
-            message = await commands.get()
+            if not commands:
+                queued.clear()
+                await queued.wait()
+                continue
+            message = commands.popleft()
             try:
                 await command(message)
             except BarsynthError as exc:
                 await send({"type": "error", "error": str(exc)})
+            except Exception as exc:  # a defect: say so, keep the stream going
+                log.exception("studio stream: %s message failed", message.get("type"))
+                await send({"type": "error", "error": f"the studio could not carry out this {message.get('type')} "
+                                                      f"message ({type(exc).__name__}); it goes on as it was"})
             wake.set()
+
+    def enqueue(message: dict[str, Any]) -> bool:
+        """Queue a command; a ``set`` joins a ``set`` still waiting (its values merged, its id the
+        newest), so a dragged slider never builds a queue. False when the page floods the stream."""
+        if message["type"] == "set" and commands and commands[-1]["type"] == "set" \
+                and isinstance(message.get("parameters"), dict) and isinstance(commands[-1].get("parameters"), dict):
+            waiting = commands[-1]
+            waiting["parameters"] = {**waiting["parameters"], **message["parameters"]}
+            if "id" in message:
+                waiting["id"] = message["id"]
+            return True
+        if len(commands) >= MAX_QUEUED:
+            return False
+        commands.append(message)
+        queued.set()
+        return True
 
     tasks = [asyncio.create_task(produce()), asyncio.create_task(commander())]
     try:
@@ -150,14 +181,18 @@ async def play(socket: Any, session: Stream) -> None:
                 message = parse_message(text)
                 if message["type"] == "played":
                     session.handle(message)
-                elif commands.qsize() >= MAX_QUEUED:
+                elif not enqueue(message):
                     await socket.close(code=1008, reason=f"more than {MAX_QUEUED} messages waiting; the stream "
                                                          "is closed")
                     break
-                else:
-                    commands.put_nowait(message)
             except BarsynthError as exc:
                 await send({"type": "error", "error": str(exc)})
+            except (WebSocketDisconnect, RuntimeError):
+                raise
+            except Exception as exc:  # a defect: say so, keep reading
+                log.exception("studio stream: a message failed")
+                await send({"type": "error", "error": f"the studio could not read this message "
+                                                      f"({type(exc).__name__}); the stream goes on as it was"})
             wake.set()
     except (WebSocketDisconnect, RuntimeError):
         pass  # the page went away mid-send

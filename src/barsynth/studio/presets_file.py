@@ -18,7 +18,7 @@ def _value(value: Any) -> str:
         return repr(value)
     if isinstance(value, (tuple, list)):
         return "[" + ", ".join(_value(v) for v in value) + "]"
-    return json.dumps(str(value), ensure_ascii=False)  # a TOML basic string
+    return json.dumps(str(value), ensure_ascii=False).replace("\x7f", "\\u007f")  # a TOML basic string (no DEL)
 
 
 def preset_toml(parameters: dict[str, Any], *, description: str, source: str = "made in barsynth studio",

@@ -38,6 +38,7 @@ from urllib.parse import urlsplit
 import uvicorn
 from fastapi import FastAPI, Request, WebSocket
 from fastapi.responses import JSONResponse, Response
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..errors import BarsynthError, ModelError
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_json,
@@ -57,7 +58,7 @@ MAX_STREAMS = 4
 DEFAULT_PORT = 8050
 _NO_STORE = {"Cache-Control": "no-store"}
 _STATIC = {"app.js": "text/javascript; charset=utf-8", "worklet.js": "text/javascript; charset=utf-8",
-           "style.css": "text/css; charset=utf-8"}
+           "link.js": "text/javascript; charset=utf-8", "style.css": "text/css; charset=utf-8"}
 
 
 def _model(name: Any) -> Any:
@@ -99,9 +100,9 @@ def _rate(value: Any) -> float:
     return float(value)
 
 
-def _duration(value: Any) -> float:
+def _duration(value: Any, default: float = 2.0) -> float:
     if value is None:
-        return 2.0
+        return default
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.01 <= value <= MAX_DURATION_S:
         raise Refused(422, f"parameter duration_s = {value!r} is out of range; allowed: 0.01 to "
                            f"{MAX_DURATION_S:g} s")
@@ -111,8 +112,8 @@ def _duration(value: Any) -> float:
 def _width(value: Any) -> int:
     if value is None:
         return 600
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) \
-            or not 16 <= value <= MAX_COLUMNS:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or value != int(value) or not 16 <= value <= MAX_COLUMNS:
         raise Refused(422, f"parameter width = {value!r} is out of range; allowed: whole numbers from 16 to "
                            f"{MAX_COLUMNS} pixels")
     return int(value)
@@ -138,6 +139,11 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
     @app.exception_handler(Refused)
     async def refused(_request: Request, exc: Refused) -> JSONResponse:
         return JSONResponse({"error": str(exc)}, status_code=exc.status, headers=_NO_STORE)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def no_such(_request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        return JSONResponse({"error": f"{exc.detail} (see docs/studio.md for the API)"}, status_code=exc.status_code,
+                            headers=_NO_STORE)
 
     @app.exception_handler(BarsynthError)
     async def bad_value(_request: Request, exc: BarsynthError) -> JSONResponse:
@@ -217,7 +223,7 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
                        {"parameters", "duration_s", "sample_rate", "width"})
         model = _model(wish["model"])
         resolved = _resolved(model, wish.get("parameters"))
-        rate, seconds = _rate(wish.get("sample_rate")), _duration(wish.get("duration_s", 1.5))
+        rate, seconds = _rate(wish.get("sample_rate")), _duration(wish.get("duration_s"), 1.5)
         found = await workers.run(picture_json, model.name, model.table.as_dict(resolved), rate, seconds,
                                   _width(wish.get("width")))
         return Response(found, media_type="application/json", headers=_NO_STORE)
@@ -228,20 +234,21 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
         model = _model(wish["model"])
         resolved = _resolved(model, wish["parameters"])
         description = wish.get("description", f"{model.name} settings")
-        if not isinstance(description, str) or not 0 < len(description) <= 200:
+        if not isinstance(description, str) or not 0 < len(description) <= 200 \
+                or any(0xD800 <= ord(c) <= 0xDFFF for c in description):
             raise Refused(422, "description must be text of 1 to 200 characters")
         text = preset_toml(model.table.as_dict(resolved), description=description, model=model.name)
         return Response(text, media_type="application/toml; charset=utf-8",
                         headers={**_NO_STORE, "Content-Disposition": f'attachment; filename="{model.name}.toml"'})
 
     def foreign(socket: WebSocket) -> bool:
-        """A page of another site (its Origin) or a rebound name (its Host) may not open a stream."""
-        if hosts is None:
-            return False
+        """A page of another origin (another site, or another port of this machine) or a rebound
+        name (its Host) may not open a stream. A client that sends no Origin is no browser page."""
+        host = socket.headers.get("host", "").strip().lower()
         origin = socket.headers.get("origin")
-        if origin is not None and host_name(urlsplit(origin).netloc) not in hosts:
+        if origin is not None and urlsplit(origin.strip().lower()).netloc != host:
             return True
-        return host_name(socket.headers.get("host", "")) not in hosts
+        return hosts is not None and host_name(host) not in hosts
 
     @app.websocket("/api/stream")
     async def stream(socket: WebSocket) -> None:
@@ -273,7 +280,7 @@ def serve(*, host: str = "127.0.0.1", port: int = DEFAULT_PORT, echo: Callable[[
         if sock.getsockname()[0] not in ("127.0.0.1", "::1"):
             echo("barsynth studio: warning: listening beyond this machine; anyone who can reach it can use it")
         sys.stdout.flush()
-        config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
+        config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off", timeout_graceful_shutdown=2,
                                 ws_max_size=4 * MAX_MESSAGE_BYTES, ws_ping_interval=20.0, ws_ping_timeout=20.0)
         QuietStop(config).run(sockets=[sock])
     finally:

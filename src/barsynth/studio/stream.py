@@ -22,6 +22,7 @@ messages are described in ``docs/studio.md``.
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import struct
@@ -45,6 +46,7 @@ MIN_STREAM_RATE = 8000
 MAX_STREAM_RATE = 96000
 MAX_ID = 2 ** 32 - 1
 GAIN_PROBE_S = 1.0  # the offline render that sets a new voice's gain
+MAX_LEAVING = 4  # voices fading out at once
 HEADER = struct.Struct("<II")
 
 MESSAGES = {  # type -> (required fields, optional fields)
@@ -62,8 +64,8 @@ class StreamError(BarsynthError):
 
 
 def _whole(name: str, value: Any, low: int, high: int, unit: str = "") -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) \
-            or not low <= value <= high:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or value != int(value) or not low <= value <= high:
         raise StreamError(f"parameter {name} = {value!r} is out of range; allowed: whole numbers from "
                           f"{low} to {high}{' ' + unit if unit else ''}")
     return int(value)
@@ -188,8 +190,10 @@ class Stream:
 
     def start(self, model: Any, voice: CrossfadingVoice, gain: float, rate: int) -> dict[str, Any]:
         """Put a built voice in place (the old one fades out); returns the ``started`` message."""
-        if self._playing is not None:
-            self._leaving.append((self._playing, 0))
+        if self._playing is not None and self._running:
+            self._leave(self._playing, max(0, self._stopping))
+        elif not self._running:
+            self._leaving = []  # nothing is sounding: nothing to fade
         self.sample_rate = rate
         self._playing = _Playing(model, voice, gain, gain)
         self._stopping = -1
@@ -217,15 +221,24 @@ class Stream:
             self.applied_id = change_id
             self._wake()
         elif kind == "trigger":
+            if self._stopping >= 0:  # struck while fading out for a stop: the fade goes on, beside
+                self._leave(_Playing(playing.model, copy.deepcopy(playing.voice), playing.base_gain, playing.gain),
+                            self._stopping)
+                playing.voice.reset()  # what the stop would have left: silence, then the new strike
+                self._stopping = -1
             playing.voice.trigger()
             self._since_trigger = 0
-            self._stopping = -1
             self._wake()
         elif kind == "release":
             playing.voice.release()
         elif kind == "stop":
             if self._running and self._stopping < 0:
                 self._stopping = 0
+
+    def _leave(self, playing: _Playing, done: int) -> None:
+        """Fade ``playing`` out beside the new sound, ``done`` samples of the fade already past;
+        at most ``MAX_LEAVING`` at once (then the oldest, nearly faded, goes at once)."""
+        self._leaving = [*self._leaving[-(MAX_LEAVING - 1):], (playing, done)]
 
     def _wake(self) -> None:
         self._running = True
@@ -264,7 +277,8 @@ class Stream:
         if not np.all(np.isfinite(x)):  # never send a NaN: silence the voice instead
             playing.voice.reset()
             x = np.zeros(n)
-        peak = float(np.max(np.abs(x))) if n else 0.0
+        magnitude = np.abs(x)
+        peak = float(np.max(magnitude)) if n else 0.0
         rate = self.sample_rate
         wanted = playing.gain * 10.0 ** (RECOVERY_DB_PER_S * n / rate / 20.0)
         wanted = min(playing.base_gain, wanted)
@@ -273,6 +287,8 @@ class Stream:
         ramp = min(n, 32) if wanted < playing.gain else n  # down fast (32 samples), up slowly
         gains = np.full(n, wanted)
         gains[:ramp] = playing.gain + (wanted - playing.gain) * (np.arange(1, ramp + 1) / ramp)
+        with np.errstate(divide="ignore"):
+            np.minimum(gains, LIMIT / magnitude, out=gains)  # and no sample of the ramp above the limit
         playing.gain = wanted
         return x * gains
 

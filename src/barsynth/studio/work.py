@@ -19,6 +19,8 @@ import io
 import json
 import multiprocessing
 import os
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable
@@ -30,11 +32,21 @@ RENDER_WAIT_S = 10.0
 WORKER_NICENESS = 10
 
 
-def _lower_priority() -> None:
+def _start_worker() -> None:
+    """In each worker: a lower priority than the server, and an end with the server's process
+    (a watcher thread sees the parent gone, even after a SIGKILL, within a second)."""
     try:
         os.nice(WORKER_NICENESS)
     except OSError:  # not allowed here: run at the same priority
         pass
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(0)
+
+    threading.Thread(target=watch, name="barsynth-parent-watch", daemon=True).start()
 
 
 def wav_bytes(samples: Any, sample_rate: float) -> bytes:
@@ -89,7 +101,7 @@ class Workers:
         if self._pool is None:
             if self.processes:
                 self._pool = ProcessPoolExecutor(self.count, mp_context=multiprocessing.get_context("spawn"),
-                                                 initializer=_lower_priority)
+                                                 initializer=_start_worker)
             else:
                 from concurrent.futures import ThreadPoolExecutor
 
@@ -115,6 +127,10 @@ class Workers:
             self._turns.release()
 
     def close(self) -> None:
+        """Stop the workers now, renders under way included (the server is stopping)."""
         if self._pool is not None:
+            processes = list(getattr(self._pool, "_processes", {}).values()) if self.processes else []
             self._pool.shutdown(wait=False, cancel_futures=True)
+            for process in processes:
+                process.terminate()
             self._pool = None
