@@ -105,9 +105,7 @@ def test_a_change_that_makes_it_much_louder_is_limited_smoothly():
     stream.handle({"type": "set", "id": 1, "parameters": {"level_db": 40.0}})
     after, _ = play(stream, 1.0)
     x = np.concatenate([before, after])
-    assert np.all(np.isfinite(x)) and np.max(np.abs(x)) <= 1.0
-    assert np.mean(np.abs(after) >= 0.999) < 0.002  # hardly a sample at full scale
-    assert np.max(np.abs(after[-RATE // 2:])) <= LIMIT
+    assert np.all(np.isfinite(x)) and np.max(np.abs(x)) <= LIMIT + 1e-6  # no sample clipped
 
 
 def test_stop_fades_out_in_10_ms_then_stops_sending_and_a_trigger_starts_afresh():
