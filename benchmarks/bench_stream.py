@@ -10,6 +10,10 @@ so a cross-fade is nearly always under way), and how many such streams one core
 could keep in real time (5.33 ms of sound per block / time per block).
 
 A block must take well under 5.33 ms; the studio plays at most 4 streams at once.
+
+Then, per model, the time the server takes to land one change that needs a new design
+(a new value each time): trying it on a fresh voice and applying it. A change is heard
+after this on top of the stream's lead.
 """
 
 from __future__ import annotations
@@ -48,6 +52,31 @@ def measure(model: str, parameters: dict, name: str, values: tuple, seconds: flo
     return np.array(times[10:]) * 1e3  # ms, after the first blocks
 
 
+REDESIGNS = (("twang", {}, "length_m", 0.25), ("farnell", {}, "frequency_hz", 300.0),
+             ("banded", {"tuning": "ratios"}, "frequency_hz", 220.0), ("allpass", {}, "length_m", 0.25),
+             ("fd", {}, "points", 120), ("fd", {"points": 300}, "points", 320))
+
+
+def change_time(model: str, parameters: dict, name: str, first: float, count: int = 8) -> np.ndarray:
+    """What the server does for one ``set`` that needs a new design (a new value each time, so no
+    design cache helps): the rehearsal on a fresh voice, then the change itself (ms)."""
+    from barsynth.studio.live import _rehearse
+
+    stream = Stream()
+    found = stream.prepare_start({"model": model, "parameters": parameters, "sample_rate": RATE})
+    stream.start(found[0], *Stream.build_voice(*found), found[2])
+    stream.handle({"type": "trigger"})
+    times = []
+    for k in range(count):
+        value = type(first)(first * (1.0 + 0.01 * (k + 1)))
+        start = time.perf_counter()
+        _rehearse(stream, {name: value})
+        stream.handle({"type": "set", "id": k + 1, "parameters": {name: value}})
+        times.append(time.perf_counter() - start)
+        stream.next_block()
+    return np.array(times) * 1e3
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0)
@@ -61,6 +90,12 @@ def main() -> None:
         print(f"{label:<18} {np.median(steady):16.3f} {np.percentile(steady, 99):6.3f} "
               f"{np.median(moving):18.3f} {np.percentile(moving, 99):6.3f} "
               f"{budget / np.mean(moving):13.0f}")
+    print()
+    print(f"{'a change that needs a new design':<40} {'median ms':>10} {'max ms':>8}")
+    for model, parameters, name, first in REDESIGNS:
+        spent = change_time(model, parameters, name, first)
+        label = f"{model} {name}, from {first:g}"
+        print(f"{label:<40} {np.median(spent):10.1f} {np.max(spent):8.1f}")
 
 
 if __name__ == "__main__":
