@@ -36,14 +36,19 @@ def load_preset(model: str, name: str) -> dict[str, Any]:
             f"unknown preset {name!r} for model {model}; "
             f"available: {', '.join(names) if names else 'none'}"
         )
-    text = _folder(model).joinpath(name + ".toml").read_text(encoding="utf-8")
+    return _document(_folder(model).joinpath(name + ".toml").read_text(encoding="utf-8"), f"preset {model}/{name}")
+
+
+def _document(text: str, what: str) -> dict[str, Any]:
+    """A preset's TOML: valid, with a ``[parameters]`` table and a ``[preset]`` table (maybe empty)."""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise PresetError(f"preset {model}/{name} is not valid TOML: {exc}") from None
+        raise PresetError(f"{what} is not valid TOML: {exc}") from None
     if not isinstance(doc.get("parameters"), dict):
-        raise PresetError(f"preset {model}/{name} has no [parameters] table")
-    doc.setdefault("preset", {})
+        raise PresetError(f"{what} has no [parameters] table")
+    if not isinstance(doc.setdefault("preset", {}), dict):
+        raise PresetError(f"{what} has a [preset] that is not a table")
     return doc
 
 
@@ -61,13 +66,8 @@ def preset_file_parameters(model: str, path: Any) -> dict[str, Any]:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise PresetError(f"cannot read preset file {str(path)!r}: {getattr(exc, 'strerror', None) or exc}") from None
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise PresetError(f"preset file {str(path)!r} is not valid TOML: {exc}") from None
-    if not isinstance(doc.get("parameters"), dict):
-        raise PresetError(f"preset file {str(path)!r} has no [parameters] table")
-    named = doc.get("preset", {}).get("model", model) if isinstance(doc.get("preset"), dict) else model
+    doc = _document(text, f"preset file {str(path)!r}")
+    named = doc["preset"].get("model", model)
     if named != model:
         raise PresetError(f"preset file {str(path)!r} is for model {named!r}, not {model!r}")
     return dict(doc["parameters"])
