@@ -117,7 +117,8 @@ def test_the_page_and_its_files_are_served_with_their_types(client):
     page = client.get("/")
     assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
     assert "default-src 'self'" in page.headers["content-security-policy"]
-    for name, kind in [("app.js", "text/javascript"), ("worklet.js", "text/javascript"), ("style.css", "text/css")]:
+    for name, kind in [("app.js", "text/javascript"), ("worklet.js", "text/javascript"),
+                       ("link.js", "text/javascript"), ("style.css", "text/css")]:
         r = client.get(f"/static/{name}")
         assert r.status_code == 200 and r.headers["content-type"].startswith(kind) and r.content
     assert client.get("/static/server.py").status_code == 404

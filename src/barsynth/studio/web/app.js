@@ -1,14 +1,18 @@
 // barsynth studio: the page (no build step, no libraries; docs/studio.md is its spec).
 //
 // The controls are generated from each model's parameter table (GET /api/models). The
-// server runs the model: the live sound comes over the WebSocket /api/stream and is played
-// by an AudioWorklet (worklet.js); the pictures (POST /api/picture), WAV files, mode tables
+// server runs the model: the live sound comes over the WebSocket /api/stream, which a Worker
+// owns (link.js), and is played by an AudioWorklet (worklet.js) fed by that worker directly,
+// not through this thread; the pictures (POST /api/picture), WAV files, mode tables
 // and preset files come over HTTP. Every value is checked by the server, whose one-line
 // message is shown as it is.
 //
 // For tests, window.studio holds live figures: state ("idle" | "playing"), blocksReceived,
-// samplesPlayed, maxBufferedFrames, underruns, latencies (ms from a change being sent to
-// its first sample leaving the speakers), lastPicture and errors.
+// samplesPlayed, maxBufferedFrames, underruns and dropouts, latencies (ms from a change being
+// sent to its first sample leaving the speakers) and changeLatencies (from the change being
+// made: a set may wait for the one before it), sets, lastSet ({id, parameters} of the last set
+// sent), heardSetId, setsWaiting, playedReports (sent to the server, heartbeats too), streams
+// (sockets opened) and closes (closed by the server or the network), lastPicture and errors.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
@@ -16,8 +20,6 @@ const $ = (id) => document.getElementById(id);
 const RATE = 48000;  // pictures and WAV files; the live stream uses the AudioContext's rate
 const PICTURE_S = 1.5;
 const PICTURE_DELAY_MS = 150;
-const SET_EVERY_MS = 20;
-const STOP_CLOSE_MS = 150;  // close the socket this long after a stop at the latest
 const MAX_LATENCIES = 1000;
 const GROUP_COLOURS = ["#1f6fb4", "#d9730d", "#2f9e44", "#c2255c", "#7048e8", "#0c8599", "#a61e4d", "#5c940d"];
 const SLIDER_STEPS = 1000;
@@ -35,7 +37,14 @@ const studio = {
   underruns: 0,
   dropouts: [],  // when the buffer ran dry while it sounded (performance.now(), ms)
   latencies: [],
+  changeLatencies: [],
   sets: 0,
+  lastSet: null,
+  heardSetId: -1,
+  setsWaiting: false,
+  playedReports: 0,
+  streams: 0,
+  closes: 0,
   lastPicture: null,
   pictures: 0,
   errors: [],
@@ -339,21 +348,27 @@ async function choosePreset(name, overrides) {
 }
 
 // --- the live sound ---------------------------------------------------------------------------
+//
+// Three threads: the stream's Worker (link.js) owns the WebSocket, the AudioWorklet
+// (worklet.js) plays, and they talk over a MessageChannel of their own: blocks one way,
+// `played` reports the other. This thread only opens and stops streams, passes on the
+// controls' messages, and keeps window.studio's figures from what the two tell it, so a busy
+// page (pictures, layout, a screenshot) never starves the sound.
 
 const live = {
   ctx: null,
   node: null,
   gain: null,
-  ws: null,
+  worker: null,
+  ready: null,
+  gen: 0,  // the socket that sounds now (0: none); each Play opens one with a new number
+  lastGen: 0,
+  asked: 0,  // Play and Stop presses: a Play still waiting for the audio gives way to a later press
   started: false,
-  playedBefore: 0,  // samples played on earlier sockets
-  played: 0,  // on this socket
-  nextSetId: 0,
-  pending: new Map(),  // set id -> performance.now() when it was sent
-  changes: {},
-  lastSetAt: -Infinity,
-  setTimer: 0,
-  closing: null,
+  pending: new Map(),  // set id -> {sentAt, changedAt} (performance.now()) on socket `gen`
+  heardId: -1,  // the newest set id heard on socket `gen`, and when
+  heardAt: 0,
+  playedOf: new Map(),  // gen -> samples of it counted in studio.samplesPlayed
 };
 
 function volume() {
@@ -361,7 +376,8 @@ function volume() {
   return v * v;
 }
 
-// The AudioContext (made inside the click that asks for sound, as browsers require) and the worklet.
+// The AudioContext (made inside the click that asks for sound, as browsers require), the
+// worklet, the stream's worker and the channel between the two.
 async function ensureAudio() {
   if (!live.ctx) {
     let ctx;
@@ -379,8 +395,15 @@ async function ensureAudio() {
       gain.gain.value = volume();
       node.connect(gain).connect(ctx.destination);
       node.port.onmessage = (event) => fromWorklet(event.data);
+      const worker = new Worker("/static/link.js");
+      worker.onmessage = (event) => fromWorker(event.data);
+      worker.onerror = (event) => showMessage(`The live sound's worker failed: ${event.message || "an error"}`);
+      const channel = new MessageChannel();
+      node.port.postMessage({ type: "link", port: channel.port1 }, [channel.port1]);
+      worker.postMessage({ type: "worklet", port: channel.port2 }, [channel.port2]);
       live.node = node;
       live.gain = gain;
+      live.worker = worker;
     })();
   }
   const resumed = live.ctx.state === "running" ? null : live.ctx.resume();
@@ -388,12 +411,10 @@ async function ensureAudio() {
   if (resumed) await resumed;
 }
 
-function streamOpen() {
-  return live.ws !== null && live.ws.readyState === WebSocket.OPEN;
-}
-
+// A message for the server on the socket that sounds now (the worker keeps it until the
+// socket is open).
 function send(message) {
-  if (streamOpen()) live.ws.send(JSON.stringify(message));
+  if (live.gen) live.worker.postMessage({ type: "send", gen: live.gen, message });
 }
 
 function startMessage() {
@@ -402,48 +423,62 @@ function startMessage() {
 
 async function play() {
   clearMessage();
+  const asked = ++live.asked;
   try {
     await ensureAudio();
   } catch (err) {
     showMessage(`This browser cannot play the live sound: ${err.message || err}`);
     return;
   }
-  if (live.ws) {
+  if (asked !== live.asked) return;  // Stop (or another Play) was pressed meanwhile
+  if (live.gen) {
     trigger();
     return;
   }
-  const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/api/stream`);
-  ws.binaryType = "arraybuffer";
-  live.ws = ws;
+  const gen = ++live.lastGen;
+  live.gen = gen;
   live.started = false;
-  live.played = 0;
-  live.nextSetId = 0;
   live.pending.clear();
-  live.changes = {};
-  live.node.port.postMessage({ type: "reset" });
+  live.heardId = -1;
+  studio.heardSetId = -1;
+  studio.lastSet = null;
+  live.node.port.postMessage({ type: "reset", gen });
+  const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/api/stream`;
+  live.worker.postMessage({ type: "open", gen, url, start: [startMessage(), { type: "trigger" }] });
+  studio.streams += 1;
   setState("playing");
-  ws.onopen = () => {
-    if (ws !== live.ws) return;
-    ws.send(JSON.stringify(startMessage()));
-    ws.send(JSON.stringify({ type: "trigger" }));
-  };
-  ws.onmessage = (event) => {
-    if (ws !== live.ws) return;
-    if (typeof event.data === "string") fromServer(JSON.parse(event.data));
-    else block(event.data);
-  };
-  ws.onclose = (event) => {
-    if (ws !== live.ws) return;  // closed by the page
-    live.ws = null;
-    live.playedBefore += live.played;
-    live.played = 0;
-    setState("idle");
-    if (event.code !== 1000) {
-      showMessage(event.reason || (event.code === 1006
-        ? "The live sound was cut off: the studio server cannot be reached."
-        : `The live sound stopped (WebSocket closed with code ${event.code}).`));
+}
+
+function fromWorker(message) {
+  if (message.type === "counts") {
+    studio.blocksReceived = message.blocks;
+    studio.sets = message.sets;
+    studio.playedReports = message.reports;
+    if (message.gen === live.gen) studio.setsWaiting = message.waiting;
+    return;
+  }
+  if (message.gen !== live.gen) return;  // a stopped socket's
+  if (message.type === "message") {
+    fromServer(message.message);
+  } else if (message.type === "sent") {
+    const sentAt = message.at - performance.timeOrigin;
+    const changedAt = message.changedAt === null ? sentAt : message.changedAt - performance.timeOrigin;
+    studio.lastSet = { id: message.id, parameters: message.parameters };
+    if (message.id <= live.heardId) {  // heard before this message came (the two come by different ways)
+      latency(live.heardAt, { sentAt, changedAt });
+    } else {
+      live.pending.set(message.id, { sentAt, changedAt });
     }
-  };
+  } else if (message.type === "close") {  // closed by the server or the network, not by a Stop
+    live.gen = 0;
+    studio.closes += 1;
+    setState("idle");
+    if (message.code !== 1000) {
+      showMessage(message.reason || (message.code === 1006
+        ? "The live sound was cut off: the studio server cannot be reached."
+        : `The live sound stopped (WebSocket closed with code ${message.code}).`));
+    }
+  }
 }
 
 function fromServer(message) {
@@ -456,47 +491,56 @@ function fromServer(message) {
   }
 }
 
-// A binary frame: uint32 LE block number, uint32 LE set id, then float32 LE samples
-// (the worklet reads them in the platform's order, little-endian everywhere browsers run).
-function block(buffer) {
-  if (buffer.byteLength < 8) return;
-  const header = new DataView(buffer, 0, 8);
-  const setId = header.getUint32(4, true);
-  studio.blocksReceived += 1;
-  live.node.port.postMessage({ type: "block", buffer, offset: 8, setId }, [buffer]);
+function latency(heardAt, sent) {
+  const ctx = live.ctx;
+  const output = 1000 * (ctx.outputLatency || ctx.baseLatency || 0);
+  studio.latencies.push(heardAt - sent.sentAt + output);
+  studio.changeLatencies.push(heardAt - sent.changedAt + output);
+  for (const list of [studio.latencies, studio.changeLatencies]) {
+    if (list.length > MAX_LATENCIES) list.splice(0, list.length - MAX_LATENCIES);
+  }
+}
+
+// Samples played, per socket: a socket's count only grows, so a late or repeated report of an
+// old socket can never count twice.
+function countPlayed(gen, played) {
+  const before = live.playedOf.get(gen) || 0;
+  if (played <= before) return;
+  studio.samplesPlayed += played - before;
+  live.playedOf.set(gen, played);
+  if (live.playedOf.size > 8) live.playedOf.delete(live.playedOf.keys().next().value);
 }
 
 function fromWorklet(message) {
-  if (message.played !== undefined) {
-    live.played = message.played;
-    studio.samplesPlayed = live.playedBefore + message.played;
+  if (message.stats) {
+    countPlayed(message.gen, message.played);
     studio.buffered = message.buffered;
     studio.maxBufferedFrames = Math.max(studio.maxBufferedFrames, message.maxBuffered);
-    if (live.ws && live.closing === null) send({ type: "played", samples: message.played });
   } else if (message.heard !== undefined) {
+    if (message.gen !== live.gen) return;
     const now = performance.now();
-    const ctx = live.ctx;
-    const output = 1000 * (ctx.outputLatency || ctx.baseLatency || 0);
-    for (const [id, sentAt] of live.pending) {
+    live.heardId = message.heard;
+    live.heardAt = now;
+    studio.heardSetId = message.heard;
+    for (const [id, sent] of live.pending) {
       if (id <= message.heard) {
-        studio.latencies.push(now - sentAt + output);
+        latency(now, sent);
         live.pending.delete(id);
-      } else if (now - sentAt > 2000) {
+      } else if (now - sent.sentAt > 2000) {
         live.pending.delete(id);  // never heard (the stream slept or refused it)
       }
     }
-    if (studio.latencies.length > MAX_LATENCIES) studio.latencies.splice(0, studio.latencies.length - MAX_LATENCIES);
   } else if (message.underrun) {
     studio.underruns += 1;
     studio.dropouts.push(Math.round(performance.now()));
     if (studio.dropouts.length > 100) studio.dropouts.shift();
-  } else if (message.stopped && live.closing) {
-    live.closing();
+  } else if (message.stopped) {
+    countPlayed(message.gen, message.played);
   }
 }
 
 function trigger() {
-  if (!live.ws) {
+  if (!live.gen) {
     play();
     return;
   }
@@ -507,53 +551,31 @@ function release() {
   send({ type: "release" });
 }
 
+// The worklet fades out over 10 ms and drops what comes after; the worker tells the server
+// and closes the socket when the fade is over. A Play right after opens a new socket: the
+// generation numbers keep the two apart.
 function stop() {
-  const ws = live.ws;
-  if (!ws) return;
-  clearTimeout(live.setTimer);
-  live.setTimer = 0;
-  send({ type: "stop" });
-  live.node.port.postMessage({ type: "stop" });
-  live.ws = null;
-  live.playedBefore += live.played;
-  live.played = 0;
+  live.asked += 1;
+  const gen = live.gen;
+  if (!gen) return;
+  live.gen = 0;
+  live.worker.postMessage({ type: "stop", gen });
+  live.node.port.postMessage({ type: "stop", gen });
   setState("idle");
-  let timer = 0;
-  const close = () => {
-    clearTimeout(timer);
-    if (live.closing === close) live.closing = null;
-    if (ws.readyState === WebSocket.OPEN || ws.readyState === WebSocket.CONNECTING) ws.close(1000, "stopped");
-  };
-  live.closing = close;
-  timer = setTimeout(close, STOP_CLOSE_MS);  // the worklet's fade takes 10 ms
 }
 
 // A new voice on the open stream (the server cross-fades), struck at once.
 function restart() {
-  if (!streamOpen()) return;
-  live.changes = {};
-  send(startMessage());
+  if (!live.gen) return;
+  send(startMessage());  // the worker drops changes not sent yet: the start has them
   send({ type: "trigger" });
 }
 
-// Changes go out at most every SET_EVERY_MS, merged; the last one always goes.
+// Changes go to the worker, which merges them and sends one set at a time (link.js).
 function queueSet(name, v) {
-  if (!streamOpen()) return;
-  live.changes[name] = v;
-  const wait = live.lastSetAt + SET_EVERY_MS - performance.now();
-  if (wait <= 0) flushSets();
-  else if (!live.setTimer) live.setTimer = setTimeout(flushSets, wait);
-}
-
-function flushSets() {
-  live.setTimer = 0;
-  if (!streamOpen() || Object.keys(live.changes).length === 0) return;
-  const id = ++live.nextSetId;
-  send({ type: "set", id, parameters: live.changes });
-  live.pending.set(id, performance.now());
-  live.changes = {};
-  live.lastSetAt = performance.now();
-  studio.sets += 1;
+  if (!live.gen) return;
+  live.worker.postMessage({ type: "set", gen: live.gen, parameters: { [name]: v },
+    at: performance.timeOrigin + performance.now() });
 }
 
 function setState(state) {
@@ -651,8 +673,8 @@ async function drawAll(data) {
     for (const v of data.waveform.max) peak = Math.max(peak, Math.abs(v));
   }
   const asked = { ...pictures.asked };
-  // One picture per task, so the page's main thread (which relays the live sound) is never
-  // held for long.
+  // One picture per task, so the page stays responsive (the live sound no longer passes
+  // through this thread, but its controls do).
   const steps = [() => drawWaveform(data), () => drawSpectrogram(data), () => drawModes(modes), () => fillTable(modes)];
   for (const step of steps) {
     if (pictures.data !== data) return;  // newer pictures came meanwhile
