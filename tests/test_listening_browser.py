@@ -1,109 +1,55 @@
 """The listening test as a participant takes it: Debian's Chromium, driven by Playwright,
 against `barsynth listen serve` running as a real process on a real SQLite file.
 
-Chromium comes from Debian (`apt-get install chromium`, done by the README's test
-command and `.ci/run`); Playwright never downloads a browser here. Screenshots of each
-stage go to the test's temporary folder, or to $BARSYNTH_SCREENSHOTS when it is set.
+Chromium comes from Debian; Playwright never downloads a browser here (see tests/browser.py).
+Screenshots of each stage are kept in test-artifacts/screenshots/ (or $BARSYNTH_SCREENSHOTS).
 """
 
 from __future__ import annotations
 
 import json
-import os
-import re
-import select
-import signal
 import sqlite3
-import subprocess
 import sys
 import time
-import urllib.request
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Page, expect, sync_playwright
+from browser import ServerProcess, chromium, screenshot_folder
+from playwright.sync_api import Page, expect
 
-CHROMIUM = os.environ.get("BARSYNTH_CHROMIUM", "/usr/bin/chromium")
-CHROMIUM_ARGS = [  # the closed network refuses Chromium's background connections; don't make them
-    "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
-]
-START_TIMEOUT_S = 120.0  # the first start may compile the anchor's numba kernel
-
-
-class Server:
+class Server(ServerProcess):
     """`python -m barsynth listen serve` in a process of its own."""
 
+    what = "listening server"
+
     def __init__(self, config: Path, results: Path, log: Path):
-        self.config, self.results, self.log = config, results, log
-        self.process: subprocess.Popen | None = None
-        self.port = 0
+        super().__init__(log)
+        self.config, self.results = config, results
 
-    def start(self) -> str:
-        with open(self.log, "ab") as log:
-            self.process = subprocess.Popen(
-                [sys.executable, "-m", "barsynth", "listen", "serve", str(self.config),
-                 "--results", str(self.results), "--port", str(self.port)],
-                stdout=subprocess.PIPE, stderr=log, text=True)
-        line = self._first_line()
-        match = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
-        assert match, f"unexpected start-up line {line!r}; log: {self.log.read_text()}"
-        self.port = int(match.group(1))
-        self.url = f"http://127.0.0.1:{self.port}/"
-        with urllib.request.urlopen(self.url + "api/health", timeout=10) as response:
-            assert json.load(response)["ok"] is True
-        return self.url
-
-    def _first_line(self) -> str:
-        deadline = time.monotonic() + START_TIMEOUT_S
-        while time.monotonic() < deadline:
-            ready, _, _ = select.select([self.process.stdout], [], [], 0.5)
-            if ready:
-                return self.process.stdout.readline()
-            if self.process.poll() is not None:
-                pytest.fail(f"server exited with {self.process.returncode}: {self.log.read_text()}")
-        pytest.fail("server did not start in time")
-
-    def kill(self) -> None:
-        """SIGKILL: no chance to flush or close anything."""
-        self.process.send_signal(signal.SIGKILL)
-        self.process.wait(timeout=10)
-        self.process.stdout.close()
-
-    def stop(self) -> int:
-        if self.process and self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            self.process.wait(timeout=20)
-            self.process.stdout.close()
-        return self.process.returncode
+    def command(self) -> list[str]:
+        return [sys.executable, "-m", "barsynth", "listen", "serve", str(self.config),
+                "--results", str(self.results), "--port", str(self.port)]
 
 
 @pytest.fixture(scope="module")
 def browser():
-    if not os.access(CHROMIUM, os.X_OK):
-        pytest.fail(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium), "
-                    "as the README's test command does")
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+    with chromium() as browser:
         yield browser
-        browser.close()
 
 
 @pytest.fixture
 def server(listening_config, tmp_path):
     server = Server(listening_config, tmp_path / "results.db", tmp_path / "server.log")
     yield server
-    if server.process is not None:
-        server.stop()
+    server.stop()
 
 
 @pytest.fixture
-def shots(tmp_path):
-    folder = Path(os.environ.get("BARSYNTH_SCREENSHOTS", tmp_path / "screenshots"))
-    folder.mkdir(parents=True, exist_ok=True)
+def shots():
+    folder = screenshot_folder()
 
     def shot(page: Page, name: str) -> None:
-        path = folder / f"{name}.png"
+        path = folder / f"listening-{name}.png"
         page.screenshot(path=path, full_page=True)
         assert path.stat().st_size > 5000  # a real picture of a page, not an empty one
     return shot

@@ -7,8 +7,8 @@ the page's own figures (window.studio) to check that samples arrive, are played,
 change reaches the output within 100 ms, that the buffer rarely runs dry (never for a busy
 main thread), that quick Stops and Plays end with the sound streaming, and that a slider
 dragged over a model whose changes are slow to design keeps its stream. Chromium comes from
-Debian; Playwright never downloads a browser. Screenshots of each stage go to the module's
-temporary folder, or to $BARSYNTH_SCREENSHOTS.
+Debian; Playwright never downloads a browser (see tests/browser.py). Screenshots of each stage
+are kept in test-artifacts/screenshots/ (or $BARSYNTH_SCREENSHOTS).
 """
 
 from __future__ import annotations
@@ -16,12 +16,7 @@ from __future__ import annotations
 import io
 import json
 import math
-import os
-import re
-import select
-import signal
 import statistics
-import subprocess
 import sys
 import time
 import tomllib
@@ -31,56 +26,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 import soundfile
-from playwright.sync_api import Page, expect, sync_playwright
+from browser import ServerProcess, chromium, screenshot_folder
+from playwright.sync_api import Page, expect
 
-CHROMIUM = os.environ.get("BARSYNTH_CHROMIUM", "/usr/bin/chromium")
-CHROMIUM_ARGS = [  # the closed network refuses Chromium's background connections; don't make them
-    "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
-]
-START_TIMEOUT_S = 120.0  # the first start may compile numba kernels
 STUDIO_COMMAND = [sys.executable, "-m", "barsynth", "studio", "--port", "0"]
 RATE = 48000
 VIEWPORT = {"width": 1400, "height": 900}
 MAX_DROPOUTS = 2  # in the twang's live session (about 4 s, two full-page screenshots); measured: 0 in 10 runs
 
 
-class Studio:
+class Studio(ServerProcess):
     """`python -m barsynth studio --port 0` in a process of its own."""
 
-    def __init__(self, log: Path):
-        self.log = log
-        self.process: subprocess.Popen | None = None
+    what = "studio"
 
-    def start(self) -> str:
-        with open(self.log, "ab") as log:
-            self.process = subprocess.Popen(STUDIO_COMMAND, stdout=subprocess.PIPE, stderr=log, text=True)
-        line = self._first_line()
-        match = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
-        assert match, f"unexpected start-up line {line!r}; log: {self.log.read_text()}"
-        self.url = f"http://127.0.0.1:{match.group(1)}/"
-        with urllib.request.urlopen(self.url + "api/health", timeout=10) as response:
-            assert json.load(response)["ok"] is True
-        return self.url
-
-    def _first_line(self) -> str:
-        deadline = time.monotonic() + START_TIMEOUT_S
-        while time.monotonic() < deadline:
-            ready, _, _ = select.select([self.process.stdout], [], [], 0.5)
-            if ready:
-                return self.process.stdout.readline()
-            if self.process.poll() is not None:
-                pytest.fail(f"studio exited with {self.process.returncode}: {self.log.read_text()}")
-        pytest.fail("studio did not start in time")
-
-    def stop(self) -> int | None:
-        if self.process and self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            self.process.wait(timeout=20)
-        if self.process:
-            self.process.stdout.close()
-            return self.process.returncode
-        return None
+    def command(self) -> list[str]:
+        return STUDIO_COMMAND
 
     def post(self, path: str, body: dict) -> dict:
         request = urllib.request.Request(self.url + path.lstrip("/"), data=json.dumps(body).encode(),
@@ -91,13 +52,8 @@ class Studio:
 
 @pytest.fixture(scope="module")
 def browser():
-    if not os.access(CHROMIUM, os.X_OK):
-        pytest.fail(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium), "
-                    "as the README's test command does")
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+    with chromium() as browser:
         yield browser
-        browser.close()
 
 
 @pytest.fixture(scope="module")
@@ -109,9 +65,8 @@ def studio(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def shots(tmp_path_factory):
-    folder = Path(os.environ.get("BARSYNTH_SCREENSHOTS") or tmp_path_factory.mktemp("screenshots"))
-    folder.mkdir(parents=True, exist_ok=True)
+def shots():
+    folder = screenshot_folder()
 
     def shot(page: Page, name: str) -> Path:
         path = folder / f"studio-{name}.png"
