@@ -101,9 +101,9 @@ async def play(socket: Any, session: Stream) -> None:
                     await wake.wait()
                 continue
             async with busy:
-                blocks, cpu_s = await asyncio.to_thread(_blocks, session, wanted)
+                blocks, spent_s = await asyncio.to_thread(_blocks, session, wanted)
                 refused = session.refused()
-                if slow.too_slow(cpu_s, wanted * session.block / session.sample_rate, session.voice):
+                if slow.too_slow(spent_s, wanted * session.block / session.sample_rate, session.voice):
                     refused.append(SlowWatch.message(session.model_name))
             for data in blocks:
                 await send(data=data)
