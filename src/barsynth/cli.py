@@ -71,10 +71,6 @@ def _shown(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def _finite_or_none(x: float) -> float | None:
-    return x if math.isfinite(x) else None
-
-
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="barsynth", prog_name="barsynth")
 def main() -> None:
@@ -496,6 +492,7 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
 def analyze(path, as_json, max_partials, plot_path):
     """Find a sound's partials: frequency, level, T60, and ratios to the lowest."""
     from .analysis import find_partials, load_audio, partial_ratios
+    from .analysis.partials import json_number
 
     if not 1 <= max_partials <= 500:
         raise ParameterError(f"parameter max_partials = {max_partials} is out of range; allowed: 1 to 500")
@@ -519,8 +516,8 @@ def analyze(path, as_json, max_partials, plot_path):
             "partials": [
                 {
                     "frequency_hz": p.frequency_hz,
-                    "level_db": _finite_or_none(p.level_db),
-                    "t60_s": _finite_or_none(p.t60_s),
+                    "level_db": json_number(p.level_db),
+                    "t60_s": json_number(p.t60_s),
                     "ratio": float(r),
                 }
                 for p, r in zip(partials, ratios)

@@ -111,13 +111,14 @@ class Partial:
     def to_json(self) -> dict[str, Any]:
         """``{"frequency_hz", "level_db", "t60_s"}``; inf and nan become ``None`` (null)."""
         return {
-            "frequency_hz": _json_number(self.frequency_hz),
-            "level_db": _json_number(self.level_db),
-            "t60_s": _json_number(self.t60_s),
+            "frequency_hz": json_number(self.frequency_hz),
+            "level_db": json_number(self.level_db),
+            "t60_s": json_number(self.t60_s),
         }
 
 
-def _json_number(value: float) -> float | None:
+def json_number(value: float) -> float | None:
+    """``value`` as a float, or None where JSON has no number for it (infinite or NaN)."""
     value = float(value)
     return value if math.isfinite(value) else None
 

@@ -19,7 +19,6 @@ HTTP API (JSON; errors are ``{"error": "one line"}`` with a 4xx status):
 
 from __future__ import annotations
 
-import io
 import json
 import re
 import sqlite3
@@ -35,7 +34,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, hosts_for, listen_socket, read_json,
-                         shown_address)
+                         shown_address, wav_bytes)
 from .config import ListeningTest, load_test
 from .session import Session, fingerprint, make_plan
 from .store import ResultsStore
@@ -45,15 +44,6 @@ MAX_BODY_BYTES = 64 * 1024
 _STATIC = {"app.js": "text/javascript; charset=utf-8", "style.css": "text/css; charset=utf-8"}
 
 
-def clip_wav(samples: Any, sample_rate: float) -> bytes:
-    """A clip as a mono 16-bit PCM WAV file, which every browser plays."""
-    import soundfile
-
-    buffer = io.BytesIO()
-    soundfile.write(buffer, samples, int(round(sample_rate)), format="WAV", subtype="PCM_16")
-    return buffer.getvalue()
-
-
 def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None,
                allowed_hosts: Iterable[str] | None = LOCAL_HOSTS) -> FastAPI:
     """The FastAPI app for one test; ``store`` is tied to it (another test's file is refused).
@@ -61,7 +51,7 @@ def create_app(test: ListeningTest, store: ResultsStore, *, rng: Any = None,
     ``allowed_hosts``: the Host names the server answers to (so a web page elsewhere
     cannot reach it by DNS rebinding); None answers to any (``--host 0.0.0.0``).
     """
-    audio = {clip_id: clip_wav(clip.samples, clip.sample_rate) for clip_id, clip in test.clips.items()}
+    audio = {clip_id: wav_bytes(clip.samples, clip.sample_rate) for clip_id, clip in test.clips.items()}
     store.bind_test(fingerprint(test, audio))
     web = resources.files("barsynth.listening") / "web"
     pages = {name: (web / name).read_bytes() for name in ("index.html", *_STATIC)}

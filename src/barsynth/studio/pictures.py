@@ -13,16 +13,14 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.partials import json_number
+
 SPECTROGRAM_ROWS = 256
 MAX_COLUMNS = 1200
 FLOOR_DB = -100.0
 CEILING_DB = 0.0
 WINDOW_S = 0.0853  # 4096 samples at 48 kHz: 12 Hz bins, for the low modes
 LOWEST_HZ = 20.0
-
-
-def _json_number(value: float) -> float | None:
-    return float(value) if math.isfinite(value) else None
 
 
 def waveform_columns(samples: np.ndarray, width: int) -> tuple[list[float], list[float]]:
@@ -78,9 +76,9 @@ def mode_rows(model: Any, resolved: Any, sample_rate: float) -> list[dict[str, A
     errors = model.errors_cents(resolved, sample_rate=sample_rate) if hasattr(model, "errors_cents") else None
     rows = []
     for k, mode in enumerate(modes):
-        row = {key: (_json_number(v) if isinstance(v, float) else v) for key, v in mode.to_json().items()}
+        row = {key: (json_number(v) if isinstance(v, float) else v) for key, v in mode.to_json().items()}
         if errors is not None and k < len(errors):
-            row["error_cents"] = _json_number(float(errors[k]))
+            row["error_cents"] = json_number(float(errors[k]))
         rows.append(row)
     return rows
 

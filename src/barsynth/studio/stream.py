@@ -145,7 +145,7 @@ class Stream:
 
     def wants_block(self) -> bool:
         """Whether a block should be sent now."""
-        return self._running and self.samples_sent - self.samples_played < self.lead
+        return self.blocks_wanted() > 0
 
     def blocks_wanted(self) -> int:
         """How many blocks the page has room for now (0 when the stream rests)."""

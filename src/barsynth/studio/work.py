@@ -15,7 +15,6 @@ between the processes.
 from __future__ import annotations
 
 import asyncio
-import io
 import json
 import multiprocessing
 import os
@@ -25,7 +24,7 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable
 
-from ..webserver import Refused
+from ..webserver import Refused, wav_bytes
 
 MAX_RENDERS = 2
 RENDER_WAIT_S = 10.0
@@ -47,15 +46,6 @@ def _start_worker() -> None:
         os._exit(0)
 
     threading.Thread(target=watch, name="barsynth-parent-watch", daemon=True).start()
-
-
-def wav_bytes(samples: Any, sample_rate: float) -> bytes:
-    """A mono 16-bit PCM WAV file of ``samples``."""
-    import soundfile
-
-    buffer = io.BytesIO()
-    soundfile.write(buffer, samples, int(sample_rate), format="WAV", subtype="PCM_16")
-    return buffer.getvalue()
 
 
 def render_wav(model_name: str, values: dict, duration_s: float, sample_rate: float) -> bytes:
