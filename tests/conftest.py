@@ -1,10 +1,27 @@
-"""Shared fixtures: a small listening test on disk (real WAV files through soundfile)."""
+"""Shared fixtures: a small listening test on disk (real WAV files through soundfile);
+Hypothesis's settings for the whole suite.
+
+Hypothesis runs derandomized, with no example database, so every run of the suite tries
+the same examples: a run never fails by luck, and what it finds is found again on any
+machine. Every failure it ever found stays as an explicit ``@example`` on its test. To
+hunt for new ones, run with ``BARSYNTH_HYPOTHESIS=explore`` (random examples, remembered in .hypothesis/),
+and turn what fails into an ``@example``.
+"""
 
 from __future__ import annotations
+
+import os
 
 import numpy as np
 import pytest
 import soundfile
+from hypothesis import HealthCheck, settings
+
+settings.register_profile("repeatable", derandomize=True, database=None, deadline=None, print_blob=True,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("explore", derandomize=False, deadline=None, print_blob=True,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("BARSYNTH_HYPOTHESIS", "repeatable"))
 
 LISTENING_TEST = """
 [test]
