@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from barsynth.analysis import measure_partial
@@ -176,14 +176,23 @@ def test_objects_that_cannot_ring_are_refused_with_one_line(change, needle):
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.data())
-def test_random_parameters_give_finite_output(data):
-    draws = {p.name: p.from_unit_interval(data.draw(st.floats(0.0, 1.0)))
-             for p in MODEL.table if p.name not in ("mode_ratios", "mode_t60s_s")}
-    rate = data.draw(st.sampled_from([22050, 44100, 96000]))
+@given(st.data(), st.just(None))
+# found: a pluck at a node of every kept mode took a force without bound (3e16 on a one-mode ring)
+@example(None, ({"tuning": "ratios", "shape": "ring", "mode_ratios": (1.0,), "excitation": "pluck",
+                 "strike_position": 0.125}, 22050))
+@example(None, ({"tuning": "physics", "mode_count": 1, "excitation": "pluck", "strike_position": 0.2242}, 22050))
+def test_random_parameters_give_finite_output(data, found):
+    if found is None:
+        draws = {p.name: p.from_unit_interval(data.draw(st.floats(0.0, 1.0)))
+                 for p in MODEL.table if p.name not in ("mode_ratios", "mode_t60s_s")}
+        rate = data.draw(st.sampled_from([22050, 44100, 96000]))
+    else:
+        draws, rate = found
     try:
         x = raw(draws, 0.2, rate)
     except ParameterError as exc:
         assert "no mode of this object" in str(exc) or "too short" in str(exc)
         return
     assert np.all(np.isfinite(x))
+    if found is not None:  # a bar moving at 1 km/s is no bar
+        assert np.max(np.abs(x)) < 1e3

@@ -25,7 +25,10 @@ fitted so that every mode decays with ``T60 = q ln(1000) / (pi f)``.
 Strike: a Hertzian mallet (as :mod:`barsynth.models.banded`) whose force enters
 both travelling waves at ``strike_position`` through ``1 / (4 rho A v(w))`` (the
 waves' share of a point force). Pluck: the strike point held out by a force and
-let go (nothing, at a clamped or pinned end). Output: the sum of the two waves at
+let go; where that would take a force without bound (near a clamped or pinned end) the
+force is capped so that no point moves more than ``PLUCK_REACH`` times the displacement,
+in the real bar or in the waveguide's own (whose clamped ends move: see below, so a pluck
+or a strike at a clamped end sounds, at a bounded level, like one near it). Output: the sum of the two waves at
 ``pickup_position`` (m/s) times ``level_db``. A new strike adds to what rings; nothing
 is cleared, and a change of parameters that rebuilds the waveguide leaves the old one
 ringing beside the new one.
@@ -62,7 +65,8 @@ from ..errors import ParameterError
 from ..parameters import CHOICE, INT, Parameter, ParameterTable
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate, check_seed, render_voice
-from .shared import add_force, bar_size_parameters, level_parameter, mallet_force, mallet_parameters, pluck_force
+from .shared import (PLUCK_DOC, POSITIONS_ALONG, add_force, bar_size_parameters, largest_deflection, level_parameter,
+                     mallet_force, mallet_parameters, pluck_force)
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "clamped-clamped", "pinned-pinned", "clamped-pinned")
 FADE_S = 0.010  # a replaced waveguide that has rung long enough fades out over this time
@@ -70,6 +74,12 @@ MAX_RETIRED = 3  # replaced waveguides still ringing at once (beyond that the ol
 RETIRE_T60S = 2.0  # a replaced waveguide rings on for this many of its longest T60 (-120 dB)
 LONGEST_RETIREMENT_S = 120.0
 LOWEST_FIRST_MODE_HZ = 1.0
+NEAREST_END = 1e-3
+"""A pluck's force is reckoned for a point no closer to an end than this (fraction of the length):
+the filters cannot place the strike point much closer (their fit leaves a point 1e-9 from a
+pinned end moving at up to 1 % of a wave's amplitude, where the real bar gives nothing), so
+the force the real bar would need there (growing as the point nears the end) is not applied
+to a point that still moves."""
 
 ALLPASS_TABLE = ParameterTable(
     "allpass",
@@ -89,8 +99,7 @@ ALLPASS_TABLE = ParameterTable(
         Parameter("strike_position", "", 0.0, 1.0, 0.1, "where it is struck or plucked: fraction of the length"),
         Parameter("pickup_position", "", 0.0, 1.0, 0.0, "where its velocity is picked up: fraction of the length"),
         *mallet_parameters(),
-        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0,
-                  "how far the strike point is held out before a pluck's release", scale="log"),
+        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log"),
         Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log"),
         level_parameter(),
     ],
@@ -116,6 +125,11 @@ def design_for(p: Any, sample_rate: float) -> AllpassDesign:
         raise ParameterError(f"parameter allpass_order = {p.allpass_order} gave no stable design for this bar; "
                              "allowed: another order from 1 to 64, or another bar")
     return design
+
+
+def _reckoned(position: float) -> float:
+    """The strike point for a pluck's force: at least ``NEAREST_END`` from either end."""
+    return min(max(position, NEAREST_END), 1.0 - NEAREST_END)
 
 
 class _Engine:
@@ -249,7 +263,7 @@ class AllpassVoice:
         if p.excitation == "strike":
             change = mallet_force(p, self.sample_rate), 0.0
         else:  # pluck: the force that holds the strike point out, then let go
-            change = pluck_force(p, self._compliance(), self.sample_rate)  # nothing at a clamped or pinned end
+            change = pluck_force(p, self._compliance(), self.sample_rate, self._reach())
         self._pending, self._tail = add_force(self._pending, self._tail, *change)
 
     def _compliance(self) -> float:
@@ -258,8 +272,27 @@ class AllpassVoice:
 
         p, modes = self._params, [m for m in self.design.modes if m.fitted]
         mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
-        return sum(float(mode_shape(p.bc, m.number, p.strike_position)) ** 2
+        return sum(float(mode_shape(p.bc, m.number, _reckoned(p.strike_position))) ** 2
                    / (mass * (2.0 * math.pi * m.physics_hz) ** 2) for m in modes)
+
+    def _reach(self) -> float:
+        """The largest static deflection per newton at the strike point (m/N), of the real bar and of
+        the waveguide's own (travelling-wave shapes: its clamped ends move), whichever is larger:
+        a pluck moves neither more than ``PLUCK_REACH`` times its displacement."""
+        from ..physics import mode_shape
+        from ..physics.modes import travelling_wave_shape
+
+        p, modes = self._params, [m for m in self.design.modes if m.fitted]
+        if not modes:
+            return 0.0
+        mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
+        stiffness = np.array([mass * (2.0 * math.pi * m.physics_hz) ** 2 for m in modes])
+        reach = 0.0
+        for shape in (mode_shape, travelling_wave_shape):
+            at = np.array([float(shape(p.bc, m.number, _reckoned(p.strike_position))) for m in modes])
+            along = np.array([shape(p.bc, m.number, POSITIONS_ALONG) for m in modes])
+            reach = max(reach, largest_deflection(at, along, stiffness))
+        return reach
 
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples: velocity at the pick-up (m/s) times the level."""

@@ -35,8 +35,9 @@ from ..errors import ParameterError
 from ..parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate
-from .shared import (BarModel, BowedBarVoice, add_force, bar_size_parameters, bow_parameters, level_parameter,
-                     mallet_force, mallet_parameters, pluck_force)
+from .shared import (PLUCK_DOC, POSITIONS_ALONG, BarModel, BowedBarVoice, add_force, bar_size_parameters,
+                     bow_parameters, largest_deflection, level_parameter, mallet_force, mallet_parameters,
+                     pluck_force)
 
 MAX_MODES = 24
 MIN_Q = 3.0  # below this a mode is not a ringing loop (see dsp.banded)
@@ -70,8 +71,7 @@ BANDED_TABLE = ParameterTable(
         Parameter("pickup_position", "", 0.0, 1.0, 0.0,
                   "where its velocity is picked up, as strike_position"),
         *mallet_parameters(),
-        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0,
-                  "how far the strike point is held out before a pluck's release", scale="log"),
+        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log"),
         Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log"),
         *bow_parameters(),
         level_parameter(),
@@ -79,14 +79,15 @@ BANDED_TABLE = ParameterTable(
 )
 
 
-def _shapes(p: Any, count: int, position: float) -> np.ndarray:
-    """Each mode's shape at ``position`` (fraction), normalised to a mean square of 1."""
+def _shapes(p: Any, count: int, position: Any) -> np.ndarray:
+    """Each mode's shape at ``position`` (fraction), normalised to a mean square of 1 (for an
+    array of positions: modes x positions)."""
     if p.tuning == "physics" or p.shape == "bar":
         from ..physics import mode_shape
 
-        return np.array([float(mode_shape("free-free", n, position)) for n in range(1, count + 1)])
+        return np.array([mode_shape("free-free", n, position) for n in range(1, count + 1)], dtype=float)
     orders = np.arange(2, count + 2)
-    return math.sqrt(2.0) * np.cos(orders * 2.0 * math.pi * position)
+    return math.sqrt(2.0) * np.cos(np.multiply.outer(orders * 2.0 * math.pi, np.asarray(position, dtype=float)))
 
 
 def mode_table(parameters: Any, sample_rate: float) -> tuple[np.ndarray, np.ndarray, float, list[str]]:
@@ -175,6 +176,7 @@ class BandedVoice(BowedBarVoice):
         self._coeffs = coeffs
         self._delays = np.array([d.delay for d in designs], dtype=np.int64)
         self._freqs, self._strike_shape, self._mass, self._index = freqs[index], strike, mass, index
+        self._along = _shapes(p, len(freqs), POSITIONS_ALONG)[index]  # for a pluck's largest deflection
 
     def reset(self) -> None:
         """Silence: every loop emptied, nothing pending."""
@@ -219,9 +221,11 @@ class BandedVoice(BowedBarVoice):
             self._pending, self._tail = add_force(self._pending, self._tail, mallet_force(p, self.sample_rate), 0.0)
         else:  # pluck: the force that holds the strike point out, then let go
             omega = 2.0 * math.pi * self._freqs
-            compliance = float(np.sum(self._strike_shape ** 2 / (self._mass * omega ** 2)))  # m/N
+            stiffness = self._mass * omega ** 2  # N/m per mode
+            compliance = float(np.sum(self._strike_shape ** 2 / stiffness))  # m/N
+            reach = largest_deflection(self._strike_shape, self._along, stiffness)
             self._pending, self._tail = add_force(self._pending, self._tail,
-                                                  *pluck_force(p, compliance, self.sample_rate))
+                                                  *pluck_force(p, compliance, self.sample_rate, reach))
 
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples: velocity at the pick-up (m/s) times the level."""

@@ -19,7 +19,9 @@ Excitations: ``strike`` (a mallet, a mass on a Hertzian spring ``F = k d^2.5``,
 coupled to the bar step by step), ``bow`` (the friction of :mod:`barsynth.dsp.friction`
 at the bow point, solved with each step by Newton's method or, with
 ``bow_solver = explicit``, taken from the step before), ``pluck`` (the bar held out
-``pluck_displacement_mm`` at the strike point and let go). The output is the bar's
+``pluck_displacement_mm`` at the strike point and let go; near a clamped or pinned end, where
+that would take a force without bound, no point is held out more than ``PLUCK_REACH`` times
+that). A strike, bow or pluck at a fixed point does nothing. The output is the bar's
 velocity at the pick-up (m/s) x ``level_db``; a free-free bar's rigid-body motion
 (it would fly off when struck) is kept out of forces and output.
 """
@@ -39,8 +41,8 @@ from ..physics.boundary import BOUNDARY_CONDITIONS
 from ..physics.profiles import PROFILE_KINDS, THINNEST, Profile
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate
-from .shared import (BarModel, BowedBarVoice, bar_size_parameters, bow_parameters, level_parameter,
-                     mallet_parameters, mallet_stiffness)
+from .shared import (PLUCK_DOC, PLUCK_REACH, BarModel, BowedBarVoice, bar_size_parameters, bow_parameters,
+                     level_parameter, mallet_parameters, mallet_stiffness)
 
 MAX_DESCRIBED = 24
 
@@ -83,8 +85,7 @@ FD_TABLE = ParameterTable(
         Parameter("strike_position", "", 0.0, 1.0, 0.7, "where it is struck or plucked: fraction of the length"),
         Parameter("pickup_position", "", 0.0, 1.0, 0.97, "where its velocity is picked up: fraction of the length"),
         *mallet_parameters(),
-        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0,
-                  "how far the strike point is held out before a pluck", scale="log"),
+        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log"),
         *bow_parameters(position=1.0),
         level_parameter(),
     ],
@@ -290,7 +291,9 @@ class FdVoice(BowedBarVoice):
             self._u_prev += shape
 
     def _static_shape(self) -> np.ndarray:
-        """The bar held out ``pluck_displacement_mm`` at the strike point by a point force (rigid motion left out)."""
+        """The bar held out ``pluck_displacement_mm`` at the strike point by a point force (rigid motion
+        left out), or less where that would move some point more than ``PLUCK_REACH`` times as far
+        (near a clamped or pinned end): then the largest deflection is that. A fixed point: no pluck."""
         from scipy.linalg import eigh
 
         from ..physics.grid import rigid_mode_count
@@ -301,8 +304,15 @@ class FdVoice(BowedBarVoice):
         values, vectors = values[elastic], vectors[:, elastic]
         force_at = self._contact[0][K.PAD:-K.PAD]  # (the point vector is also the unit force vector)
         shape = vectors @ ((vectors.T @ force_at) / values)  # the deflection under a unit force
-        there = float(np.dot(self._contact[0][K.PAD:-K.PAD], shape))
-        return shape * (self._params.pluck_displacement_mm * 1e-3 / there) if there > 0 else shape * 0.0
+        there = float(np.dot(force_at, shape))
+        largest = float(np.max(np.abs(shape))) if shape.size else 0.0
+        displacement = self._params.pluck_displacement_mm * 1e-3
+        if there >= largest / PLUCK_REACH and there > np.finfo(float).tiny:
+            return shape * (displacement / there)
+        if not largest > 0.0:
+            return shape * 0.0
+        unit = shape / largest  # (scaled first: near a fixed node the shape can be subnormal)
+        return unit * (displacement / max(float(np.dot(force_at, unit)), 1.0 / PLUCK_REACH))
 
     def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples: velocity at the pick-up (m/s) times the level."""

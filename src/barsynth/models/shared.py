@@ -8,6 +8,7 @@ those of :mod:`barsynth.dsp.bow_stroke`.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -62,14 +63,46 @@ def mallet_force(p: Any, sample_rate: float) -> np.ndarray:
                         sample_rate=sample_rate)
 
 
-def pluck_force(p: Any, compliance_m_n: float, sample_rate: float) -> tuple[np.ndarray, float]:
+PLUCK_REACH = 10.0
+"""A pluck moves no point of the bar more than this many times ``pluck_displacement_mm``.
+Near a clamped or pinned end (or at a node of every mode a model keeps) holding the strike
+point out takes a force growing without bound, and the rest of the bar (a cantilever's
+tip) would follow; there the force is capped so that the bar's largest deflection is
+``PLUCK_REACH x pluck_displacement_mm``. Ordinary plucks never reach it (a cantilever
+plucked at a tenth of its length from the clamp moves its tip 14.5 times as far, at a
+seventh 10 times; a free-free bar's ends at most 2.6 times), so their sound is unchanged."""
+
+PLUCK_DOC = ("how far the strike point is held out before a pluck's release (near a clamped or pinned end "
+             f"less: no point of the bar is held out more than {PLUCK_REACH:g} times this)")
+
+
+def pluck_force(p: Any, compliance_m_n: float, sample_rate: float,
+                reach_m_n: float = 0.0) -> tuple[np.ndarray, float]:
     """A pluck as a force change: the ramp that lets go of the force holding the strike point
     ``p.pluck_displacement_mm`` out (over ``p.release_time_ms``), and the change that stays after it.
-    A point that does not give (``compliance_m_n`` 0) has nothing to pluck."""
+
+    ``compliance_m_n`` is the strike point's deflection per newton there, ``reach_m_n`` the bar's
+    largest deflection per newton there (m/N): the force never moves any point more than
+    :data:`PLUCK_REACH` x the displacement. A point that does not give (both 0) has nothing to pluck."""
     from ..dsp.mallet import release_ramp
 
-    force = p.pluck_displacement_mm * 1e-3 / compliance_m_n if compliance_m_n > 0.0 else 0.0
+    give = max(compliance_m_n, reach_m_n / PLUCK_REACH)
+    force = p.pluck_displacement_mm * 1e-3 / give if give > 0.0 else 0.0
+    if not math.isfinite(force):  # a give so small it underflows the division: no point moves measurably
+        force = 0.0
     return release_ramp(-force, p.release_time_ms * 1e-3, sample_rate), -force
+
+
+def largest_deflection(at_strike: np.ndarray, along: np.ndarray, stiffness: np.ndarray) -> float:
+    """The bar's largest static deflection per newton at the strike point (m/N), from its modes:
+    ``max_x |sum_n phi_n(x) phi_n(a) / k_n|`` for the shapes ``at_strike`` (``phi_n(a)``, one per
+    mode), ``along`` (``phi_n(x)``, modes x positions) and modal stiffnesses ``k_n = m w_n^2``."""
+    if along.size == 0:
+        return 0.0
+    return float(np.max(np.abs((at_strike / stiffness) @ along)))
+
+
+POSITIONS_ALONG = np.linspace(0.0, 1.0, 201)  # where a bar's largest deflection is looked for
 
 
 def add_force(pending: np.ndarray, held: float, change: np.ndarray, change_held: float) -> tuple[np.ndarray, float]:

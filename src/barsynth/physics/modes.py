@@ -226,3 +226,23 @@ def mode_shape(bc: str, n: int, x, *, derivative: int = 0):
     lam, coef = _shape_coefficients(name, mode)
     out = np.tensordot(coef, _basis(lam * pos, lam, order), axes=1) * lam**order
     return out[()] if out.ndim == 0 else out
+
+
+def travelling_wave_shape(bc: str, n: int, x):
+    """The part of ``mode_shape(bc, n, x)`` carried by travelling waves (``a cos + b sin``), without
+    the near fields that die away from the ends: the shape a waveguide model gives the mode (its
+    clamped ends move, its free ends read half).
+
+    Examples
+    --------
+    >>> round(float(travelling_wave_shape("clamped-free", 1, 0.0)), 6) != 0.0  # a clamped end moves
+    True
+    >>> round(float(travelling_wave_shape("pinned-pinned", 1, 0.5)), 6)  # no near field at all
+    1.414214
+    """
+    name = _check_bc(bc)
+    mode = check_whole("n", n, "", 1, MAX_COUNT, integral_floats=True)
+    pos = check_array("x", x, "(fraction of length)", minimum=0.0, maximum=1.0)
+    lam, coef = _shape_coefficients(name, mode)
+    out = coef[0] * np.cos(lam * pos) + coef[1] * np.sin(lam * pos)
+    return out[()] if out.ndim == 0 else out
