@@ -357,8 +357,7 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
                              f"{output.suffix} files; allowed: PCM_16 or PCM_24")
     samples = model.render(resolved, duration_s=seconds, sample_rate=rate, seed=seed,
                            normalize=not raw)
-    if not np.all(np.isfinite(samples)):  # a defect, never expected: refuse to write it
-        raise BarsynthError("the model produced non-finite samples; nothing written")
+    # (non-finite or exploding samples were refused by the render: models.rendering.check_samples)
     if raw and np.max(np.abs(samples)) > 1.0 and subtype != "FLOAT":
         raise ParameterError("the raw render exceeds full scale; use --subtype FLOAT or drop --raw")
     jobs = [(output, lambda tmp: soundfile.write(tmp, samples, int(rate), format=fmt,

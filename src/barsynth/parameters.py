@@ -236,6 +236,7 @@ class ParameterTable:
             cls_name + "Parameters", fields, frozen=True, kw_only=True
         )
         self.dataclass.__doc__ = f"Resolved parameters of the {model} model (see its table)."
+        self.dataclass._table = self  # a class attribute, not a field: lets an error message name the model
 
     def __iter__(self):
         return iter(self.parameters)
