@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_number, check_whole
+from ..checks import check_number, check_whole, show_value
 from ..errors import ParameterError, SamplesError
 
 MIN_SAMPLE_RATE = 8_000.0
@@ -38,7 +38,7 @@ def check_sample_rate(sample_rate: Any) -> float:
     )
     if not rate.is_integer():
         raise ParameterError(
-            f"parameter sample_rate = {sample_rate!r} is not a whole number; "
+            f"parameter sample_rate = {show_value(sample_rate)} is not a whole number; "
             f"allowed: whole numbers from {MIN_SAMPLE_RATE:g} to {MAX_SAMPLE_RATE:g} Hz"
         )
     return rate
@@ -72,7 +72,7 @@ def check_dtype(dtype: Any) -> np.dtype:
         kind = None
     # (``kind is None`` first: NumPy compares None equal to the float64 dtype)
     if kind is None or kind not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise ParameterError(f"parameter dtype = {dtype!r} is not allowed; allowed: float32 or float64")
+        raise ParameterError(f"parameter dtype = {show_value(dtype)} is not allowed; allowed: float32 or float64")
     return kind
 
 
@@ -86,7 +86,7 @@ def render_voice(voice: Any, duration_s: float, *, normalize: bool = True,
     count = int(round(duration * voice.sample_rate))
     if count < 1:
         raise ParameterError(
-            f"parameter duration_s = {duration_s!r} is shorter than one sample; allowed: at "
+            f"parameter duration_s = {show_value(duration_s)} is shorter than one sample; allowed: at "
             f"least {1.0 / voice.sample_rate:.3g} s at {voice.sample_rate:g} Hz"
         )
     voice.trigger()

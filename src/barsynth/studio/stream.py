@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BarsynthError, SamplesError
+from ..checks import show_value
 from ..models.crossfade import DEFAULT_FADE_S, CrossfadingVoice
 from ..models.rendering import check_samples
 
@@ -73,7 +74,7 @@ class StreamError(BarsynthError):
 def _whole(name: str, value: Any, low: int, high: int, unit: str = "") -> int:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
             or value != int(value) or not low <= value <= high:
-        raise StreamError(f"parameter {name} = {value!r} is out of range; allowed: whole numbers from "
+        raise StreamError(f"parameter {name} = {show_value(value)} is out of range; allowed: whole numbers from "
                           f"{low} to {high}{' ' + unit if unit else ''}")
     return int(value)
 
@@ -86,14 +87,14 @@ def parse_message(text: str) -> dict[str, Any]:
         raise StreamError("a stream message must be a JSON object; this is not valid JSON") from None
     if not isinstance(message, dict) or message.get("type") not in MESSAGES:
         kind = message.get("type") if isinstance(message, dict) else None
-        raise StreamError(f"parameter type = {kind!r} is not a stream message; allowed: one of "
+        raise StreamError(f"parameter type = {show_value(kind)} is not a stream message; allowed: one of "
                           f"{', '.join(MESSAGES)}")
     required, optional = MESSAGES[message["type"]]
     fields = set(message) - {"type"}
     if required - fields:
         raise StreamError(f"a {message['type']} message needs {', '.join(sorted(required - fields))}")
     if fields - required - optional:
-        raise StreamError(f"unknown field {sorted(fields - required - optional)[0]!r} in a {message['type']} "
+        raise StreamError(f"unknown field {show_value(sorted(fields - required - optional)[0])} in a {message['type']} "
                           f"message; allowed: {', '.join(sorted(required | optional)) or 'none'}")
     return message
 
@@ -173,7 +174,7 @@ class Stream:
 
         name = message["model"]
         if not isinstance(name, str):
-            raise StreamError(f"parameter model = {name!r} is not a model name")
+            raise StreamError(f"parameter model = {show_value(name)} is not a model name")
         model = get_model(name)
         parameters = message.get("parameters") or {}
         if not isinstance(parameters, dict):
@@ -181,7 +182,7 @@ class Stream:
         resolved = model.table.resolve(parameters)
         rate = message.get("sample_rate", 48000)
         if self._playing is not None and rate != self.sample_rate:
-            raise StreamError(f"parameter sample_rate = {rate!r} differs from this stream's "
+            raise StreamError(f"parameter sample_rate = {show_value(rate)} differs from this stream's "
                               f"{self.sample_rate} Hz; allowed: {self.sample_rate} Hz (open a new stream)")
         return model, resolved, _whole("sample_rate", rate, MIN_STREAM_RATE, MAX_STREAM_RATE, "Hz")
 
