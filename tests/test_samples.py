@@ -25,14 +25,19 @@ class ExplodingVoice:
     """A voice whose sound is fine until ``at`` samples, then ``bad`` (NaN, inf or a huge value)."""
 
     def __init__(self, parameters, bad: float = float("nan"), at: int = 4800, sample_rate: float = RATE):
-        self.parameters, self.bad, self.at, self.sample_rate, self.n = parameters, bad, at, float(sample_rate), 0
+        self.parameters, self.bad, self.at, self.sample_rate = parameters, bad, at, float(sample_rate)
+        self.reset()
 
     def trigger(self) -> None:
         self.n = 0
 
+    def reset(self) -> None:
+        self.n = -10 ** 9  # silence (far from ``at``) until the next trigger
+
     def process(self, n: int, dtype=np.float64) -> np.ndarray:
         k = self.n + np.arange(n)
         x = np.where(k >= self.at, self.bad, 0.1 * np.sin(2 * np.pi * 440.0 * k / self.sample_rate))
+        x[k < 0] = 0.0
         self.n += n
         return x.astype(dtype)
 
@@ -145,3 +150,38 @@ def test_a_listening_clip_that_blows_up_is_refused_when_the_test_loads(tmp_path,
     with pytest.raises(ConfigError) as caught:
         load_test(config)
     assert_the_line(str(caught.value), "[[clips]] #1 (a): model banded with its default parameters gives ")
+
+
+def test_the_live_stream_refuses_a_start_that_blows_up_and_never_sends_a_later_blow_up(client, monkeypatch):
+    """Through the WebSocket: a start whose probe blows up gets an error and the stream plays on
+    afterwards; a voice that blows up later (after the 1 s probe) is silenced and the page told."""
+    import json
+
+    model = get_model("banded")
+    at = {"sample": 4800}
+    monkeypatch.setattr(model, "voice", lambda parameters=None, *, sample_rate=48000.0, seed=0: ExplodingVoice(
+        model.table.resolve(parameters) if isinstance(parameters, dict) or parameters is None else parameters,
+        float("nan"), at=at["sample"], sample_rate=sample_rate))
+    with client.websocket_connect("/api/stream", headers={"host": "127.0.0.1:8000"}) as socket:
+        socket.send_json({"type": "start", "model": "banded", "sample_rate": RATE})
+        reply = socket.receive_json()
+        assert reply["type"] == "error"
+        assert_the_line(reply["error"], "model banded with its default parameters gives non-finite")
+        at["sample"] = int(1.2 * RATE)  # now past the probe: the start is taken, the blow-up comes later
+        socket.send_json({"type": "start", "model": "banded", "sample_rate": RATE})
+        assert socket.receive_json()["type"] == "started"
+        socket.send_json({"type": "trigger"})
+        samples, errors, sent = [], [], 0
+        while sent < int(1.5 * RATE):
+            message = socket.receive()
+            if message.get("bytes"):
+                samples.append(np.frombuffer(message["bytes"][8:], "<f4"))
+                sent += samples[-1].size
+                socket.send_json({"type": "played", "samples": sent})
+            elif message.get("text"):
+                errors.append(json.loads(message["text"]))
+        x = np.concatenate(samples)
+        assert np.all(np.isfinite(x)) and np.max(np.abs(x)) <= 1.0
+        assert np.max(np.abs(x[:RATE])) > 0.1 and np.max(np.abs(x[int(1.25 * RATE):])) == 0.0
+        assert len(errors) == 1 and errors[0]["type"] == "error"
+        assert_the_line(errors[0]["error"], "non-finite samples (NaN from 1.2 s)")
