@@ -201,4 +201,4 @@ def test_checks_imports_only_the_standard_library_numpy_and_errors():
             imported.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
             imported.add("." * node.level + (node.module or ""))
-    assert imported <= {"__future__", "math", "collections.abc", "numpy", ".errors"}
+    assert imported <= {"__future__", "math", "os", "stat", "collections.abc", "numpy", ".errors"}

@@ -202,3 +202,112 @@ def test_huge_numbers_in_messages_are_refused_not_crashed_on():
     for message in ({"type": "played", "samples": float("inf")}, {"type": "set", "id": 1e400, "parameters": {}}):
         with pytest.raises(StreamError, match="out of range"):
             stream.handle(message)
+
+
+# -- samples that blow up, and the limiter's release -----------------------------------------------
+class ScriptedVoice:
+    """A stand-in voice: a 0.5-amplitude 440 Hz sine from each trigger, with ``bad`` (a value)
+    written at sample ``at`` of the sound (counted from the trigger); what the stream needs."""
+
+    def __init__(self, bad: float | None = None, at: int = 3 * BLOCK + 17):
+        self.bad, self.at, self.n, self.silent = bad, at, 0, False
+        self.refused: list[str] = []
+        self.fading = False
+        self.sample_rate = float(RATE)
+        self.parameters = get_model("banded").table.resolve({"frequency_hz": 123.0})
+
+    def process(self, n: int, dtype=np.float64) -> np.ndarray:
+        k = self.n + np.arange(n)
+        x = 0.0 * k if self.silent else 0.5 * np.sin(2 * np.pi * 440.0 * k / RATE)
+        if self.bad is not None and not self.silent and self.n <= self.at < self.n + n:
+            x[self.at - self.n] = self.bad
+        self.n += n
+        return x.astype(dtype)
+
+    def trigger(self) -> None:
+        self.n, self.silent = 0, False
+
+    def reset(self) -> None:  # silence until the next trigger
+        self.n, self.silent = 0, True
+
+    def release(self) -> None:
+        pass
+
+
+def scripted(voice: ScriptedVoice) -> Stream:
+    stream = Stream()
+    stream.start(get_model("banded"), voice, 1.0, RATE)  # gain 1: the stream is the voice itself
+    stream.handle({"type": "trigger"})
+    return stream
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), 1e30])
+def test_a_voice_that_blows_up_is_silenced_and_the_page_told_never_sent(bad):
+    stream = scripted(ScriptedVoice(bad))
+    x, _ = play(stream, 0.1)
+    assert np.all(np.isfinite(x)) and np.max(np.abs(x)) <= LIMIT + 1e-6
+    assert np.max(np.abs(x[:3 * BLOCK])) > 0.4  # it sounded before the blow-up ...
+    assert np.max(np.abs(x[3 * BLOCK:])) == 0.0  # ... and from the bad block on, silence
+    errors = stream.refused()
+    assert len(errors) == 1 and "\n" not in errors[0] and len(errors[0]) < 300
+    assert errors[0].startswith("model banded with frequency_hz=123 gives ")
+    assert ("non-finite" if not np.isfinite(bad) else "exploding") in errors[0]
+    assert stream.refused() == []  # told once
+    stream.handle({"type": "trigger"})  # the stream stays usable: a new trigger sounds again
+    again, _ = play(stream, 3 * BLOCK / RATE)
+    assert np.max(np.abs(again)) > 0.4
+
+
+def test_a_start_whose_settings_blow_up_is_refused_and_the_stream_goes_on(monkeypatch):
+    """An injected model that explodes (a stand-in for any model's blow-up): build_voice refuses it."""
+    from barsynth.errors import SamplesError
+
+    stream = started("banded")
+    stream.handle({"type": "trigger"})
+    model = get_model("banded")
+    monkeypatch.setattr(model, "voice", lambda *a, **k: ScriptedVoice(float("nan"), at=100))
+    model_, resolved, rate = stream.prepare_start({"model": "banded", "sample_rate": RATE})
+    with pytest.raises(SamplesError, match="non-finite samples"):
+        Stream.build_voice(model_, resolved, rate)
+    x, _ = play(stream, 0.05)
+    assert stream.model_name == "banded" and np.max(np.abs(x)) > 0.1
+
+
+def test_the_fd_blow_up_case_is_never_streamed():
+    """fd plucked at its clamp (a blow-up before the fd fix): refused at start, or if the model
+    now gives a sound, a finite one within full scale."""
+    from barsynth.errors import SamplesError
+
+    stream = Stream()
+    model, resolved, rate = stream.prepare_start({"model": "fd", "sample_rate": RATE, "parameters": {
+        "bc": "clamped-free", "excitation": "pluck", "strike_position": 1e-155}})
+    try:
+        voice, gain = Stream.build_voice(model, resolved, rate)
+    except SamplesError as exc:
+        assert "model fd with" in str(exc) and "strike_position=1e-155" in str(exc)
+        return
+    stream.start(model, voice, gain, rate)
+    stream.handle({"type": "trigger"})
+    x, _ = play(stream, 0.2)
+    assert np.all(np.isfinite(x)) and np.max(np.abs(x)) <= LIMIT + 1e-6
+
+
+def recovery_samples(spike: float) -> int:
+    """Samples of sound after a one-sample ``spike`` (at 1 s) until a block is back within 1 dB
+    of the voice's own level (0.5 at gain 1)."""
+    stream = scripted(ScriptedVoice(spike, at=RATE))
+    x, _ = play(stream, 3.0)
+    after = x[RATE + 1:]
+    blocks = np.abs(after[: after.size // BLOCK * BLOCK]).reshape(-1, BLOCK).max(axis=1)
+    back = np.flatnonzero(blocks >= 0.5 * 10 ** (-1 / 20))
+    assert back.size, "the level never came back"
+    return int(back[0] + 1) * BLOCK
+
+
+def test_the_limiter_lets_the_level_back_within_half_a_second_after_a_huge_spike():
+    """One spike 180 dB above the sound (still below the blow-up bound) cuts the gain by as much;
+    the release brings it back within RELEASE_S of sound (at 6 dB/s it took 30 s)."""
+    from barsynth.studio import stream as module
+
+    assert recovery_samples(1e9) <= (module.RELEASE_S + 0.05) * RATE
+    assert recovery_samples(10.0) <= (module.RELEASE_S + 0.05) * RATE  # a shallow cut too

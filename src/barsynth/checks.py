@@ -14,9 +14,14 @@ Ranges: ``minimum`` and ``maximum`` are inclusive unless ``minimum_exclusive`` o
 ``maximum_exclusive`` is set; ``None`` means no bound. NaN and ±inf are always out
 of range. ``bool`` is never accepted as a number.
 
-This module imports only NumPy, :mod:`barsynth.errors` and (for type hints)
-:mod:`collections.abc`, so any part of barsynth may use it without slowing its
-import.
+Files: :func:`check_input_file` and :func:`check_output_file` refuse a FIFO, a
+device or a socket at once (reading one would hang or never end; writing one would
+replace it), and :func:`show_text` shortens what a message quotes of a user's text
+(a name, a path) to at most 80 characters.
+
+This module imports only NumPy, :mod:`barsynth.errors`, :mod:`os`, :mod:`stat` and
+(for type hints) :mod:`collections.abc`, so any part of barsynth may use it without
+slowing its import.
 """
 
 from __future__ import annotations
@@ -24,12 +29,15 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import math
+import os
+import stat
 
 import numpy as np
 
 from .errors import ParameterError
 
-__all__ = ["check_array", "check_choice", "check_number", "check_whole"]
+__all__ = ["check_array", "check_choice", "check_input_file", "check_number", "check_output_file",
+           "check_whole", "show_text", "show_value"]
 
 _REAL_TYPES = (int, float, np.integer, np.floating)  # bool is an int: excluded separately
 _MAX_SHOWN = 80  # longest repr of a value quoted in a message
@@ -42,6 +50,64 @@ def _show(value: object) -> str:
         return text
     dtype = getattr(value, "dtype", None)
     return f"<{type(value).__name__}{'' if dtype is None else f' of {dtype}'}>"
+
+
+def show_value(value: object) -> str:
+    """``repr(value)`` if it is short and on one line; a longer string as the start and end of its
+    repr around "..." (at most 80 characters); anything else long as a short description."""
+    if isinstance(value, str):
+        return show_text(repr(value))
+    return _show(value)
+
+
+def show_text(text: object) -> str:
+    """``text`` (a name, a path) on one line and at most ``_MAX_SHOWN`` characters: a longer one
+    keeps its start and end (a path's file name) around "..."."""
+    flat = " ".join(str(text).split()) if "\n" in str(text) or "\r" in str(text) else str(text)
+    if len(flat) <= _MAX_SHOWN:
+        return flat
+    half = (_MAX_SHOWN - 3) // 2
+    return f"{flat[:half]}...{flat[-half:]}"
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    return "not a regular file"
+
+
+def check_input_file(path: object, what: str) -> None:
+    """Refuse, at once, a ``path`` to read that is missing or not a regular file (a FIFO would
+    hang the reader, a device never end). ``what`` names it: ``"preset file"``, ``"config"``."""
+    name = os.fspath(path)  # type: ignore[arg-type]
+    try:
+        mode = os.stat(name).st_mode
+    except FileNotFoundError:
+        raise ParameterError(f"{what} {show_text(name)}: no such file") from None
+    except OSError as exc:
+        raise ParameterError(f"{what} {show_text(name)}: {exc.strerror or 'cannot be read'}") from None
+    if not stat.S_ISREG(mode):
+        raise ParameterError(f"{what} {show_text(name)} is {_kind(mode)}; allowed: a regular file")
+
+
+def check_output_file(path: object, what: str) -> None:
+    """Refuse, at once, a ``path`` to write that exists and is not a regular file (a FIFO or a
+    device would be replaced by a file, or block). A new name, or a link to a file, is fine."""
+    name = os.fspath(path)  # type: ignore[arg-type]
+    try:
+        mode = os.stat(name).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise ParameterError(f"{what} {show_text(name)}: {exc.strerror or 'cannot be checked'}") from None
+    if not stat.S_ISREG(mode):
+        raise ParameterError(f"{what} {show_text(name)} is {_kind(mode)}; allowed: a regular file or a new name")
 
 
 def _bound(value: float) -> str:

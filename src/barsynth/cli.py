@@ -18,6 +18,7 @@ from typing import Any
 
 import click
 
+from .checks import show_text
 from .errors import BarsynthError, ParameterError
 
 AUDIO_FORMATS = {".wav": "WAV", ".flac": "FLAC", ".ogg": "OGG"}
@@ -26,6 +27,11 @@ SUBTYPES = ("PCM_16", "PCM_24", "FLOAT")
 
 
 def _fail(message: str) -> None:
+    """One line on stderr (any run of more than 80 characters without a space, such as a value
+    click quotes, shortened: nothing a user typed is echoed at length), then exit status 2."""
+    import re
+
+    message = re.sub(r"\S{81,}", lambda run: show_text(run.group()), " ".join(str(message).split()))
     click.echo(f"barsynth: error: {message}", err=True)
     sys.exit(2)
 
@@ -264,18 +270,22 @@ def _output_format(path: Path) -> str:
     fmt = AUDIO_FORMATS.get(path.suffix.lower())
     if fmt is None:
         raise ParameterError(
-            f"parameter output = {str(path)!r} has an unsupported extension; "
+            f"parameter output = {show_text(path)} has an unsupported extension; "
             f"allowed: {', '.join(AUDIO_FORMATS)}"
         )
     return fmt
 
 
 def _check_writable_dir(path: Path, what: str) -> None:
+    """An output path: not an existing FIFO, device or folder, in a folder that exists and is writable."""
+    from .checks import check_output_file
+
+    check_output_file(path, f"parameter {what} =")
     parent = path.resolve().parent
     if not parent.is_dir():
-        raise ParameterError(f"parameter {what} = {str(path)!r}: folder {str(parent)!r} does not exist")
+        raise ParameterError(f"parameter {what} = {show_text(path)}: folder {show_text(parent)} does not exist")
     if not os.access(parent, os.W_OK):
-        raise ParameterError(f"parameter {what} = {str(path)!r}: folder {str(parent)!r} is not writable")
+        raise ParameterError(f"parameter {what} = {show_text(path)}: folder {show_text(parent)} is not writable")
 
 
 def _write_all(jobs: list[tuple[Path, Any]]) -> None:
@@ -283,6 +293,10 @@ def _write_all(jobs: list[tuple[Path, Any]]) -> None:
     then rename them all: a failure anywhere leaves no new or partial file behind.
     A symbolic link is followed (its target is replaced); an existing file keeps its
     permissions, a new one gets the usual 0666 less the umask."""
+    from .checks import check_output_file
+
+    for path, _ in jobs:  # a FIFO or device is never replaced by a file
+        check_output_file(path, "output")
     umask = os.umask(0)
     os.umask(umask)
     temps: list[tuple[str, Path]] = []
@@ -305,7 +319,7 @@ def _write_all(jobs: list[tuple[Path, Any]]) -> None:
             raise
         target = temps[-1][1] if temps else jobs[0][0]
         reason = getattr(exc, "strerror", None) or str(exc).strip().splitlines()[-1]
-        raise BarsynthError(f"could not write {target}: {reason}; nothing written") from None
+        raise BarsynthError(f"could not write {show_text(target)}: {reason}; nothing written") from None
 
 
 @main.command()
@@ -341,7 +355,7 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
     _check_writable_dir(output, "output")
     if plot_path is not None:
         if plot_path.suffix.lower() != ".png":
-            raise ParameterError(f"parameter plot = {str(plot_path)!r} must end in .png")
+            raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
         _check_writable_dir(plot_path, "plot")
     import numpy as np
     import soundfile
@@ -357,8 +371,7 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
                              f"{output.suffix} files; allowed: PCM_16 or PCM_24")
     samples = model.render(resolved, duration_s=seconds, sample_rate=rate, seed=seed,
                            normalize=not raw)
-    if not np.all(np.isfinite(samples)):  # a defect, never expected: refuse to write it
-        raise BarsynthError("the model produced non-finite samples; nothing written")
+    # (non-finite or exploding samples were refused by the render: models.rendering.check_samples)
     if raw and np.max(np.abs(samples)) > 1.0 and subtype != "FLOAT":
         raise ParameterError("the raw render exceeds full scale; use --subtype FLOAT or drop --raw")
     jobs = [(output, lambda tmp: soundfile.write(tmp, samples, int(rate), format=fmt,
@@ -459,7 +472,7 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
         if not 2 <= count <= 200:
             raise ParameterError(f"parameter {name} = {count} is out of range; allowed: 2 to 200 values")
     if output.suffix.lower() != ".png":
-        raise ParameterError(f"parameter output = {str(output)!r} must end in .png")
+        raise ParameterError(f"parameter output = {show_text(output)} must end in .png")
     _check_writable_dir(output, "output")
     table = model.table
     grid = {}
@@ -498,7 +511,7 @@ def analyze(path, as_json, max_partials, plot_path):
         raise ParameterError(f"parameter max_partials = {max_partials} is out of range; allowed: 1 to 500")
     if plot_path is not None:
         if plot_path.suffix.lower() != ".png":
-            raise ParameterError(f"parameter plot = {str(plot_path)!r} must end in .png")
+            raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
         _check_writable_dir(plot_path, "plot")
     samples, rate = load_audio(path)
     partials = find_partials(samples, rate, max_partials=max_partials)
@@ -577,10 +590,14 @@ def listen_serve(config, results, host, port):
     Every clip is loaded or rendered and checked before the server starts; each
     answer is written to RESULTS.db the moment it is submitted.
     """
+    from .checks import check_input_file
     from .listening.server import serve
+    from .listening.store import check_results_file
 
     if results is None:
         results = config.with_name(f"{config.stem}-results.db")
+    check_input_file(config, "config")
+    check_results_file(results)  # at once, before the clips are rendered; nothing is written
     serve(config, results, host=host, port=port, echo=click.echo)
 
 
@@ -597,14 +614,21 @@ def listen_report(results, csv_dir, plot_path, holm_correction):
     from .listening.store import open_existing
 
     if plot_path is not None and plot_path.suffix.lower() != ".png":
-        raise ParameterError(f"parameter plot = {str(plot_path)!r} must end in .png")
+        raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
+    if plot_path is not None:
+        _check_writable_dir(plot_path, "plot")
+    if csv_dir is not None:
+        from .checks import check_output_file
+
+        for name in ("ratings.csv", "ab.csv", "summary.csv", "pairwise.csv"):
+            check_output_file(csv_dir / name, "parameter csv: file")
     with open_existing(results) as store:
         text = report_text(store, holm_correction=holm_correction)
         if csv_dir is not None:
             try:
                 csv_dir.mkdir(parents=True, exist_ok=True)
             except OSError as exc:
-                raise BarsynthError(f"could not create {csv_dir}: {exc.strerror or exc}") from None
+                raise BarsynthError(f"could not create {show_text(csv_dir)}: {exc.strerror or exc}") from None
             tables = csv_tables(store, holm_correction=holm_correction)
             _write_all([(csv_dir / name, lambda tmp, t=table: write_table(tmp, *t))
                         for name, table in tables.items()])

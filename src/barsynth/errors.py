@@ -25,3 +25,7 @@ class ModelError(BarsynthError, ValueError):
 
 class AudioFileError(BarsynthError, OSError):
     """An audio file is missing, unreadable or of an unsupported kind."""
+
+
+class SamplesError(BarsynthError, ValueError):
+    """Settings for which a model gives non-finite or exploding samples (never played or written)."""

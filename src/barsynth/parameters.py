@@ -16,6 +16,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from .checks import show_value
 from .errors import ParameterError
 
 FLOAT = "float"
@@ -137,7 +138,7 @@ class Parameter:
         if self.kind == INT:
             if number != int(number):
                 raise ParameterError(
-                    f"parameter {self.name} = {value!r} must be a whole number "
+                    f"parameter {self.name} = {show_value(value)} must be a whole number "
                     f"from {self.range_text()}"
                 )
             return int(number)
@@ -150,7 +151,7 @@ class Parameter:
         elif isinstance(value, (list, tuple)):
             items = list(value)
         else:
-            raise ParameterError(f"parameter {self.name} = {value!r} is not a list; allowed: "
+            raise ParameterError(f"parameter {self.name} = {show_value(value)} is not a list; allowed: "
                                  f"{self.range_text()}")
         if len(items) > self.max_items:
             raise ParameterError(f"parameter {self.name} has {len(items)} values; allowed: "
@@ -160,7 +161,7 @@ class Parameter:
             number = self._to_number(item)
             assert self.minimum is not None and self.maximum is not None
             if not (math.isfinite(number) and self.minimum <= number <= self.maximum):
-                raise ParameterError(f"parameter {self.name}: value {position} = {item!r} is out of range; "
+                raise ParameterError(f"parameter {self.name}: value {position} = {show_value(item)} is out of range; "
                                      f"allowed: {self.range_text()}")
             out.append(number)
         return tuple(out)
@@ -176,13 +177,13 @@ class Parameter:
             return math.inf
         except ValueError:
             raise ParameterError(
-                f"parameter {self.name} = {value!r} is not a number; "
+                f"parameter {self.name} = {show_value(value)} is not a number; "
                 f"allowed: {self.range_text()}"
             ) from None
 
     def _error(self, value: Any) -> ParameterError:
         return ParameterError(
-            f"parameter {self.name} = {value!r} is out of range; "
+            f"parameter {self.name} = {show_value(value)} is out of range; "
             f"allowed: {self.range_text()}"
         )
 
@@ -236,6 +237,7 @@ class ParameterTable:
             cls_name + "Parameters", fields, frozen=True, kw_only=True
         )
         self.dataclass.__doc__ = f"Resolved parameters of the {model} model (see its table)."
+        self.dataclass._table = self  # a class attribute, not a field: lets an error message name the model
 
     def __iter__(self):
         return iter(self.parameters)
@@ -255,7 +257,7 @@ class ParameterTable:
             return self._by_name[name]
         except KeyError:
             raise ParameterError(
-                f"unknown parameter {name!r} for model {self.model}; "
+                f"unknown parameter {show_value(name)} for model {self.model}; "
                 f"known: {', '.join(self.names)}"
             ) from None
 
@@ -312,6 +314,6 @@ def parse_assignments(items: Iterable[str]) -> dict[str, str]:
         name, sep, value = item.partition("=")
         name = name.strip()
         if not sep or not name:
-            raise ParameterError(f"--set {item!r} must have the form NAME=VALUE")
+            raise ParameterError(f"--set {show_value(item)} must have the form NAME=VALUE")
         out[name] = value.strip()
     return out

@@ -15,6 +15,7 @@ from typing import Any
 
 import uvicorn
 
+from .checks import show_text
 from .errors import BarsynthError
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "[::1]")
@@ -119,14 +120,14 @@ def listen_socket(host: str, port: int) -> socket.socket:
         family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
         sock = socket.socket(family, kind, proto)
     except (OSError, UnicodeError) as exc:
-        raise BarsynthError(f"cannot listen on {host}:{port}: {getattr(exc, 'strerror', None) or exc}") from None
+        raise BarsynthError(f"cannot listen on {show_text(host)}:{port}: {getattr(exc, 'strerror', None) or exc}") from None
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind(address)
         sock.listen(128)  # connections wait in the backlog until uvicorn takes them
     except OSError as exc:
         sock.close()
-        raise BarsynthError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+        raise BarsynthError(f"cannot listen on {show_text(host)}:{port}: {exc.strerror or exc}") from None
     return sock
 
 

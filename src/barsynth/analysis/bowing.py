@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_number
+from ..checks import check_number, show_value
 from ..errors import ParameterError
 
 STEADY_WINDOW_S = 0.25
@@ -82,7 +82,7 @@ def _grid(name: str, values: Any, parameter: Any) -> np.ndarray:
     try:
         grid = np.asarray(values, dtype=np.float64).ravel()
     except (TypeError, ValueError):
-        raise ParameterError(f"parameter {name} = {values!r} is not a list of numbers; allowed: 1 to 200 values, "
+        raise ParameterError(f"parameter {name} = {show_value(values)} is not a list of numbers; allowed: 1 to 200 values, "
                              f"each {parameter.range_text()}") from None
     if grid.size == 0 or grid.size > 200:
         raise ParameterError(f"parameter {name} has {grid.size} values; allowed: 1 to 200 values")

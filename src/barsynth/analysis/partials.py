@@ -1247,28 +1247,30 @@ def load_audio(path: str | os.PathLike[str]) -> tuple[np.ndarray, float]:
     """
     import soundfile
 
+    from ..checks import show_text
+
     name = os.fspath(path)
     if not os.path.exists(name):
-        raise AudioFileError(f"audio file {name}: no such file")
+        raise AudioFileError(f"audio file {show_text(name)}: no such file")
     if os.path.isdir(name):
-        raise AudioFileError(f"audio file {name}: is a directory, not a sound file")
+        raise AudioFileError(f"audio file {show_text(name)}: is a directory, not a sound file")
     if not stat.S_ISREG(os.stat(name).st_mode):  # a FIFO or device would block or never end
-        raise AudioFileError(f"audio file {name}: is not a regular file")
+        raise AudioFileError(f"audio file {show_text(name)}: is not a regular file")
     try:
         data, rate = soundfile.read(name, dtype="float64", always_2d=True)
     except (RuntimeError, soundfile.SoundFileError, OSError, ValueError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise AudioFileError(
-            f"audio file {name}: cannot be read as WAV, FLAC or OGG ({reason})"
+            f"audio file {show_text(name)}: cannot be read as WAV, FLAC or OGG ({reason})"
         ) from None
     if data.shape[0] == 0:
-        raise AudioFileError(f"audio file {name}: contains no samples")
+        raise AudioFileError(f"audio file {show_text(name)}: contains no samples")
     if rate < MIN_AUDIO_RATE_HZ:
         raise AudioFileError(
-            f"audio file {name}: sample rate {rate} Hz is too low; allowed: at least "
+            f"audio file {show_text(name)}: sample rate {rate} Hz is too low; allowed: at least "
             f"{MIN_AUDIO_RATE_HZ:g} Hz"
         )
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0].copy()
     if not np.all(np.isfinite(mono)):
-        raise AudioFileError(f"audio file {name}: contains non-finite samples")
+        raise AudioFileError(f"audio file {show_text(name)}: contains non-finite samples")
     return mono, float(rate)

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import show_text
 from ..errors import ParameterError
 from .partials import Partial, _as_signal, _positive
 
@@ -110,7 +111,7 @@ def plot_sound(
     out = Path(os.fspath(path))
     if not out.parent.is_dir():
         raise ParameterError(
-            f"parameter path = {os.fspath(path)!r}: folder {str(out.parent)!r} does not exist"
+            f"parameter path = {show_text(os.fspath(path))}: folder {show_text(out.parent)} does not exist"
         )
     marks: list[float] = []
     for p in partials or []:

@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import show_text
 from ..errors import BarsynthError
 
 MIN_CLIP_RATE_HZ = 8000     # what every browser plays
@@ -83,10 +84,10 @@ class ListeningTest:
 
 def _keys(where: str, table: Any, allowed: set[str], path: Path) -> dict:
     if not isinstance(table, dict):
-        raise ConfigError(f"config {path}: {where} must be a table")
+        raise ConfigError(f"config {show_text(path)}: {where} must be a table")
     unknown = sorted(set(table) - allowed)
     if unknown:
-        raise ConfigError(f"config {path}: {where} has unknown key {unknown[0]!r}; "
+        raise ConfigError(f"config {show_text(path)}: {where} has unknown key {show_text(repr(unknown[0]))}; "
                           f"allowed: {', '.join(sorted(allowed))}")
     return table
 
@@ -95,38 +96,43 @@ def load_test(path: str | Path) -> ListeningTest:
     """Read, check and prepare a listening test (loads and renders every clip)."""
     from ..models.rendering import check_sample_rate
 
+    from ..checks import check_input_file
+
     path = Path(path)
     try:
+        check_input_file(path, "config")  # a FIFO would hang the read, a device never end
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except BarsynthError as exc:
+        raise ConfigError(str(exc)) from None
     except FileNotFoundError:
-        raise ConfigError(f"config {path}: no such file") from None
+        raise ConfigError(f"config {show_text(path)}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"config {path}: cannot be read ({exc})") from None
+        raise ConfigError(f"config {show_text(path)}: cannot be read ({exc})") from None
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"config {path}: not valid TOML ({exc})") from None
+        raise ConfigError(f"config {show_text(path)}: not valid TOML ({exc})") from None
     _keys("the file", doc, _TOP_KEYS, path)
     head = _keys("[test]", doc.get("test", {}), _TEST_KEYS, path)
     title = str(head.get("title", "Listening test"))
     try:
         rate = check_sample_rate(head.get("sample_rate", 48000))
     except BarsynthError as exc:
-        raise ConfigError(f"config {path}: [test] {exc}") from None
+        raise ConfigError(f"config {show_text(path)}: [test] {exc}") from None
     if rate > MAX_CLIP_RATE_HZ:
-        raise ConfigError(f"config {path}: [test] sample_rate = {rate:g} Hz is more than browsers play; "
+        raise ConfigError(f"config {show_text(path)}: [test] sample_rate = {rate:g} Hz is more than browsers play; "
                           f"allowed: up to {MAX_CLIP_RATE_HZ} Hz")
 
     clips: dict[str, Clip] = {}
     entries = doc.get("clips", [])
     if not isinstance(entries, list) or not entries:
-        raise ConfigError(f"config {path}: needs at least one [[clips]] entry")
+        raise ConfigError(f"config {show_text(path)}: needs at least one [[clips]] entry")
     for number, entry in enumerate(entries, start=1):
         entry = _keys(f"[[clips]] #{number}", entry, _CLIP_KEYS, path)
         clip_id = entry.get("id")
         where = f"[[clips]] #{number}"
         if not isinstance(clip_id, str) or not _ID.match(clip_id):
-            raise ConfigError(f"config {path}: {where} needs an id of 1-64 letters, digits, '-' or '_'")
+            raise ConfigError(f"config {show_text(path)}: {where} needs an id of 1-64 letters, digits, '-' or '_'")
         if clip_id in clips:
-            raise ConfigError(f"config {path}: {where}: id {clip_id!r} is used twice")
+            raise ConfigError(f"config {show_text(path)}: {where}: id {clip_id!r} is used twice")
         clips[clip_id] = _clip(path, f"{where} ({clip_id})", clip_id, entry, rate)
 
     pages = []
@@ -134,10 +140,10 @@ def load_test(path: str | Path) -> ListeningTest:
         page = _keys(f"[[mushra]] #{number}", page, _PAGE_KEYS, path)
         ids = page.get("clips")
         if not isinstance(ids, list) or len(ids) < 2:
-            raise ConfigError(f"config {path}: [[mushra]] #{number} needs clips = [at least 2 ids]")
+            raise ConfigError(f"config {show_text(path)}: [[mushra]] #{number} needs clips = [at least 2 ids]")
         _known(path, f"[[mushra]] #{number}", ids, clips)
         if len(set(ids)) != len(ids):
-            raise ConfigError(f"config {path}: [[mushra]] #{number} lists a clip twice")
+            raise ConfigError(f"config {show_text(path)}: [[mushra]] #{number} lists a clip twice")
         pages.append(tuple(ids))
     pairs = []
     for number, pair in enumerate(doc.get("ab", []), start=1):
@@ -145,19 +151,19 @@ def load_test(path: str | Path) -> ListeningTest:
         real, synthetic = pair.get("real"), pair.get("synthetic")
         _known(path, f"[[ab]] #{number}", [real, synthetic], clips)
         if real == synthetic:
-            raise ConfigError(f"config {path}: [[ab]] #{number} compares {real!r} with itself")
+            raise ConfigError(f"config {show_text(path)}: [[ab]] #{number} compares {real!r} with itself")
         if any(p.real == real and p.synthetic == synthetic for p in pairs):
-            raise ConfigError(f"config {path}: [[ab]] #{number} repeats the pair {real!r} / {synthetic!r}")
+            raise ConfigError(f"config {show_text(path)}: [[ab]] #{number} repeats the pair {real!r} / {synthetic!r}")
         pairs.append(ABPair(real, synthetic, str(pair.get("label", synthetic))))
     if not pages and not pairs:
-        raise ConfigError(f"config {path}: needs at least one [[mushra]] page or [[ab]] pair")
+        raise ConfigError(f"config {show_text(path)}: needs at least one [[mushra]] page or [[ab]] pair")
     return ListeningTest(title, clips, tuple(pages), tuple(pairs))
 
 
 def _known(path: Path, where: str, ids: list, clips: dict) -> None:
     for clip_id in ids:
         if clip_id not in clips:
-            raise ConfigError(f"config {path}: {where} names unknown clip {clip_id!r}; "
+            raise ConfigError(f"config {show_text(path)}: {where} names unknown clip {show_text(repr(clip_id))}; "
                               f"known: {', '.join(clips)}")
 
 
@@ -177,23 +183,23 @@ def _playable(path: Path, where: str, audio: Path, samples: np.ndarray, rate: fl
             problem = (f"peaks at {20 * np.log10(peak):+.1f} dBFS, above full scale; allowed: peaks up to "
                        "0 dBFS (it would clip when served)")
     if problem:
-        raise ConfigError(f"config {path}: {where}: audio file {audio} {problem}")
+        raise ConfigError(f"config {show_text(path)}: {where}: audio file {show_text(audio)} {problem}")
 
 
 def _clip(path: Path, where: str, clip_id: str, entry: dict, rate: float) -> Clip:
     has_file, has_model = "file" in entry, "model" in entry
     if has_file == has_model:
-        raise ConfigError(f"config {path}: {where} needs exactly one of file = ... or model = ...")
+        raise ConfigError(f"config {show_text(path)}: {where} needs exactly one of file = ... or model = ...")
     if has_file:
         if set(entry) - {"id", "file"}:
-            raise ConfigError(f"config {path}: {where}: a file clip takes only id and file")
+            raise ConfigError(f"config {show_text(path)}: {where}: a file clip takes only id and file")
         from ..analysis import load_audio
 
         audio = (path.parent / str(entry["file"])).resolve()
         try:
             samples, file_rate = load_audio(audio)
         except BarsynthError as exc:
-            raise ConfigError(f"config {path}: {where}: {exc}") from None
+            raise ConfigError(f"config {show_text(path)}: {where}: {exc}") from None
         _playable(path, where, audio, samples, file_rate)
         source = f"file {audio}"
         if file_rate != rate:  # every clip is served at one rate, so no header tells them apart
@@ -218,6 +224,6 @@ def _clip(path: Path, where: str, clip_id: str, entry: dict, rate: float) -> Cli
         samples = model.render(resolved, duration_s=entry.get("duration_s", 2.0), sample_rate=rate,
                                seed=entry.get("seed", 0))
     except BarsynthError as exc:
-        raise ConfigError(f"config {path}: {where}: {exc}") from None
+        raise ConfigError(f"config {show_text(path)}: {where}: {exc}") from None
     label = f"model {model.name}" + (f" preset {entry['preset']}" if "preset" in entry else "")
     return Clip(clip_id, samples, rate, label)

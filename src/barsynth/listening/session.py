@@ -19,6 +19,7 @@ import random
 import secrets
 from typing import Any
 
+from ..checks import show_value
 from ..webserver import Refused
 from .config import ListeningTest
 from .store import RATING_MAX, AnswerRefused, ResultsStore
@@ -116,7 +117,7 @@ class Session:
     def answer(self, step_index: Any, payload: Any) -> None:
         """Check and store the answer to one step (a whole MUSHRA page, or one A/B pair)."""
         if not isinstance(step_index, int) or not 0 <= step_index < len(self.steps):
-            raise Refused(404, f"no step {step_index!r} in this session; steps are 0 to {len(self.steps) - 1}")
+            raise Refused(404, f"no step {show_value(step_index)} in this session; steps are 0 to {len(self.steps) - 1}")
         done = self._done()
         current = _first_open(done)
         if done[step_index]:
@@ -156,7 +157,7 @@ class Session:
             if not isinstance(handle, str) or handle not in on_page:
                 raise Refused(422, f"handle {str(handle)[:40]!r} is not a sound of this page")
             if handle in seen:
-                raise Refused(422, f"handle {handle!r} is rated twice")
+                raise Refused(422, f"handle {show_value(handle)} is rated twice")
             seen.add(handle)
             rating = entry.get("rating")
             if not _number_within(rating, 0.0, RATING_MAX):
@@ -226,4 +227,4 @@ def _labels(step: dict[str, Any]) -> list[str]:
 def _only_keys(payload: dict, allowed: set[str]) -> None:
     unknown = sorted(set(payload) - allowed)
     if unknown:
-        raise Refused(422, f"unknown field {unknown[0]!r}; allowed: {', '.join(sorted(allowed))}")
+        raise Refused(422, f"unknown field {show_value(unknown[0])}; allowed: {', '.join(sorted(allowed))}")

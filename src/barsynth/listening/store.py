@@ -5,6 +5,14 @@ sync), so a participant closing the tab or the server being killed loses nothing
 already answered. Participants are random ids; nothing personal is stored.
 Constraints in the schema itself refuse out-of-range ratings and a second answer
 to the same question, so nothing invalid can be stored by any route.
+
+Other people's files stay untouched: a results file barsynth creates is marked with
+SQLite's ``PRAGMA application_id`` (``APPLICATION_ID``), and an existing file is
+opened only if it carries that mark, read from its header before SQLite opens it
+(:func:`check_results_file`). An empty file, a FIFO or device, a file that is not
+SQLite, and an SQLite database of anything else are refused with one line and left
+byte for byte as they were. A results file made by a barsynth from before the mark
+(application_id 0 and exactly barsynth's tables) is accepted and stamped.
 """
 
 from __future__ import annotations
@@ -12,7 +20,9 @@ from __future__ import annotations
 import hashlib
 import hmac
 import secrets
+import os
 import sqlite3
+import stat
 import threading
 import time
 from collections.abc import Iterator
@@ -20,9 +30,13 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from ..checks import show_text
 from ..errors import BarsynthError, ParameterError
 
 RATING_MAX = 9.99
+APPLICATION_ID = 0x42415253  # "BARS": PRAGMA application_id of every barsynth results file
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+_TABLES = frozenset({"participants", "mushra_ratings", "ab_answers", "test_info", "sessions", "plays"})
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS participants (
     id TEXT PRIMARY KEY,
@@ -70,17 +84,70 @@ class AnswerRefused(BarsynthError, ValueError):
     """An answer that cannot be stored: unknown participant, out of range, or a repeat."""
 
 
+def _not_ours(path: Path, why: str) -> BarsynthError:
+    return BarsynthError(f"results file {show_text(path)} is not a barsynth results database ({why}); it was "
+                         "left untouched: give a new file name (barsynth creates it) or a results file barsynth made")
+
+
+def check_results_file(path: str | Path) -> str:
+    """What ``path`` is, checked without writing a byte: ``"new"`` (missing: it will be created),
+    ``"ours"`` (marked with ``APPLICATION_ID``) or ``"legacy"`` (an unmarked results file of an
+    earlier barsynth: application_id 0 and exactly our tables). Anything else is refused with one
+    line (:class:`~barsynth.errors.BarsynthError`)."""
+    path = Path(path)
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        if not path.parent.is_dir():
+            raise BarsynthError(f"results file {show_text(path)}: folder {show_text(path.parent)} does not exist") \
+                from None
+        return "new"
+    except OSError as exc:
+        raise BarsynthError(f"results file {show_text(path)}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a FIFO" if stat.S_ISFIFO(mode) else "a folder" if stat.S_ISDIR(mode) else "a device or socket"
+        raise _not_ours(path, f"it is {kind}, not a regular file")
+    try:
+        with open(path, "rb") as handle:
+            header = handle.read(100)
+    except OSError as exc:
+        raise BarsynthError(f"results file {show_text(path)}: cannot be read ({exc.strerror or exc})") from None
+    if not header:
+        raise _not_ours(path, "an empty file")
+    if len(header) < 100 or not header.startswith(_SQLITE_MAGIC):
+        raise _not_ours(path, "not an SQLite file")
+    application_id = int.from_bytes(header[68:72], "big")
+    if application_id == APPLICATION_ID:
+        return "ours"
+    if application_id != 0:
+        raise _not_ours(path, f"an SQLite database of another application, id {application_id:#x}")
+    try:  # immutable: read the schema without locks, journals or a -shm file beside it
+        probe = sqlite3.connect(f"{path.resolve().as_uri()}?immutable=1", uri=True)
+        try:
+            tables = {row[0] for row in probe.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        finally:
+            probe.close()
+    except sqlite3.DatabaseError as exc:
+        raise _not_ours(path, f"an unreadable SQLite file: {exc}") from None
+    if tables != _TABLES:
+        found = ", ".join(sorted(tables)) or "none"
+        raise _not_ours(path, f"an SQLite database with other tables: {show_text(found)}")
+    return "legacy"
+
+
 class ResultsStore:
-    """A listening test's answers in one SQLite file (created if missing)."""
+    """A listening test's answers in one SQLite file: created (and marked) if missing; an existing
+    one only if it is barsynth's (see :func:`check_results_file`)."""
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
         self._lock = threading.RLock()
         self._depth = 0
-        if not self.path.parent.is_dir():
-            raise BarsynthError(f"results file {self.path}: folder {self.path.parent} does not exist")
+        found = check_results_file(self.path)
         try:
             self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
+            if found != "ours":  # new (before WAL, so the mark is in the file's header at once) or legacy
+                self._db.execute(f"PRAGMA application_id = {APPLICATION_ID}")
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.execute("PRAGMA foreign_keys=ON")
@@ -253,6 +320,6 @@ def _digest(token: str) -> str:
 def open_existing(path: str | Path) -> ResultsStore:
     """Open a results file that must already exist (for reports)."""
     p = Path(path)
-    if not p.is_file():
-        raise BarsynthError(f"results file {p}: no such file")
+    if check_results_file(p) == "new":
+        raise BarsynthError(f"results file {show_text(p)}: no such file")
     return ResultsStore(p)

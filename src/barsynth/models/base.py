@@ -16,6 +16,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ..errors import ModelError, ParameterError
+from ..checks import show_value
 from ..parameters import ParameterTable
 
 
@@ -91,7 +92,7 @@ def get_model(name: str) -> Model:
         path = _MODEL_PATHS[name]
     except KeyError:
         raise ModelError(
-            f"unknown model {name!r}; available: {', '.join(model_names())}"
+            f"unknown model {show_value(name)}; available: {', '.join(model_names())}"
         ) from None
     module_name, attr = path.split(":")
     return getattr(importlib.import_module(module_name), attr)
@@ -106,6 +107,6 @@ def resolve_parameters(model: Model, parameters: Any) -> Any:
     if isinstance(parameters, model.table.dataclass):
         return parameters
     raise ParameterError(
-        f"parameter parameters = {parameters!r} is not allowed; allowed: None, a mapping "
+        f"parameter parameters = {show_value(parameters)} is not allowed; allowed: None, a mapping "
         f"of parameter names to values, or {model.table.dataclass.__name__}"
     )

@@ -6,14 +6,27 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_number, check_whole
-from ..errors import ParameterError
+from ..checks import check_number, check_whole, show_value
+from ..errors import ParameterError, SamplesError
 
 MIN_SAMPLE_RATE = 8_000.0
 MAX_SAMPLE_RATE = 384_000.0
 MAX_DURATION_S = 600.0
 NORMALIZE_PEAK_DBFS = -1.0
 MAX_BLOCK_SAMPLES = int(MAX_DURATION_S * MAX_SAMPLE_RATE)  # the longest render at the highest rate
+
+# The largest raw sample (before any normalisation or gain) a model may give; beyond it the
+# output is a numerical blow-up, not a sound. Raw output is the pick-up velocity in m/s times
+# the level gain (level_db, at most +40 dB). Measured (0.3-0.5 s renders at 48 kHz, level_db
+# at each model's maximum): every preset and 160 random in-range settings peak below 2.5e2 (fd),
+# 5 (farnell), 2.1 (twang), 1.2e4 (banded) and 6e5 (allpass, heavy mallet near a clamped end);
+# the worst corner found that is not a blow-up, banded struck at its end with the heaviest
+# mallet, 1.7e8. Blow-ups grow exponentially and pass 1e30 within milliseconds (allpass plucked
+# at a support: 6e34; fd plucked at the clamp: NaN from the first sample). 1e10 is 34 dB above
+# that corner and 84 dB above any interior setting, and far below float overflow.
+MAX_RAW_PEAK = 1e10
+_MAX_SETTINGS_SHOWN = 6  # non-default parameters named in a samples error
+_MAX_VALUE_CHARS = 24  # longest value shown in a samples error
 
 
 def check_sample_rate(sample_rate: Any) -> float:
@@ -25,7 +38,7 @@ def check_sample_rate(sample_rate: Any) -> float:
     )
     if not rate.is_integer():
         raise ParameterError(
-            f"parameter sample_rate = {sample_rate!r} is not a whole number; "
+            f"parameter sample_rate = {show_value(sample_rate)} is not a whole number; "
             f"allowed: whole numbers from {MIN_SAMPLE_RATE:g} to {MAX_SAMPLE_RATE:g} Hz"
         )
     return rate
@@ -59,7 +72,7 @@ def check_dtype(dtype: Any) -> np.dtype:
         kind = None
     # (``kind is None`` first: NumPy compares None equal to the float64 dtype)
     if kind is None or kind not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise ParameterError(f"parameter dtype = {dtype!r} is not allowed; allowed: float32 or float64")
+        raise ParameterError(f"parameter dtype = {show_value(dtype)} is not allowed; allowed: float32 or float64")
     return kind
 
 
@@ -73,11 +86,12 @@ def render_voice(voice: Any, duration_s: float, *, normalize: bool = True,
     count = int(round(duration * voice.sample_rate))
     if count < 1:
         raise ParameterError(
-            f"parameter duration_s = {duration_s!r} is shorter than one sample; allowed: at "
+            f"parameter duration_s = {show_value(duration_s)} is shorter than one sample; allowed: at "
             f"least {1.0 / voice.sample_rate:.3g} s at {voice.sample_rate:g} Hz"
         )
     voice.trigger()
     samples = voice.process(count, dtype=np.float64)
+    check_samples(samples, getattr(voice, "parameters", None), voice.sample_rate)
     if normalize:
         return normalize_peak(samples, dtype=dtype)
     return samples.astype(dtype, copy=False)
@@ -92,3 +106,59 @@ def normalize_peak(samples: np.ndarray, peak_dbfs: float = NORMALIZE_PEAK_DBFS,
     scale = 10.0 ** (peak_dbfs / 20.0) / peak if peak > 0.0 else 1.0
     np.multiply(samples, scale, out=out, casting="same_kind")
     return out
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, tuple):
+        text = ",".join(_short(x) for x in value) or "-"
+    elif isinstance(value, float):
+        text = f"{value:g}"
+    else:
+        text = str(value)
+    text = " ".join(text.split())
+    return text if len(text) <= _MAX_VALUE_CHARS else text[:_MAX_VALUE_CHARS - 3] + "..."
+
+
+def settings_text(parameters: Any) -> str:
+    """``model fd with bc=clamped-free, excitation=pluck, ...``: a model's resolved parameters as one
+    short line (the values that differ from the defaults, each shortened; at most a few of them)."""
+    table = getattr(type(parameters), "_table", None)
+    if table is None:
+        return "the model"
+    changed = [(p.name, getattr(parameters, p.name)) for p in table
+               if getattr(parameters, p.name) != p.default]
+    if not changed:
+        return f"model {table.model} with its default parameters"
+    shown = ", ".join(f"{name}={_short(value)}" for name, value in changed[:_MAX_SETTINGS_SHOWN])
+    more = len(changed) - _MAX_SETTINGS_SHOWN
+    return f"model {table.model} with {shown}" + (f" and {more} more" if more > 0 else "")
+
+
+def check_samples(samples: np.ndarray, parameters: Any, sample_rate: float, *, start: int = 0) -> np.ndarray:
+    """``samples`` (a model's raw output) if every one is finite and at most ``MAX_RAW_PEAK`` in
+    magnitude; else :class:`~barsynth.errors.SamplesError`, one line naming the model, its settings
+    (``parameters``, the resolved dataclass) and when the trouble begins (``start``: the index of
+    the first sample in the whole sound). Every path that computes samples calls it: renders (CLI,
+    studio, listening tests), the studio's pictures and its live stream.
+
+    >>> check_samples(np.zeros(4), None, 48000.0)
+    array([0., 0., 0., 0.])
+    """
+    if samples.size == 0:
+        return samples
+    with np.errstate(invalid="ignore"):
+        peak = max(float(np.max(samples)), -float(np.min(samples)))
+    if peak <= MAX_RAW_PEAK:  # False for NaN
+        return samples
+    flat = samples.reshape(-1)
+    finite = np.isfinite(flat)
+    if not finite.all():
+        first = int(np.argmax(~finite))
+        kind = "NaN" if np.isnan(flat[first]) else "infinite"
+        what = f"non-finite samples ({kind} from {(start + first) / sample_rate:.3g} s)"
+    else:
+        first = int(np.argmax(np.abs(flat) > MAX_RAW_PEAK))
+        what = (f"exploding samples (peak {peak:.2g}, beyond {MAX_RAW_PEAK:g}, from "
+                f"{(start + first) / sample_rate:.3g} s)")
+    raise SamplesError(f"{settings_text(parameters)} gives {what}; nothing is played or written "
+                       "(a numerical blow-up: change these settings)")

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import check_number, check_whole
+from ..checks import check_number, check_whole, show_value
 from ..errors import ParameterError
 from .boundary import BOUNDARY_CONDITIONS
 from .profiles import Profile
@@ -44,7 +44,7 @@ MAX_EXTRAPOLATED_POINTS = 300
 
 def _ends(bc: str) -> tuple[str, str]:
     if bc not in BOUNDARY_CONDITIONS:
-        raise ParameterError(f"parameter bc = {bc!r} is unknown; allowed: one of {', '.join(BOUNDARY_CONDITIONS)}")
+        raise ParameterError(f"parameter bc = {show_value(bc)} is unknown; allowed: one of {', '.join(BOUNDARY_CONDITIONS)}")
     left, right = bc.split("-")
     return left, right
 
@@ -197,7 +197,7 @@ def grid_modes(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: floa
     """
     count = check_whole("count", count, "modes", minimum=1)
     if extrapolate and not MIN_POINTS <= points <= MAX_EXTRAPOLATED_POINTS:
-        raise ParameterError(f"parameter points = {points!r} is out of range; allowed: {MIN_POINTS} to "
+        raise ParameterError(f"parameter points = {show_value(points)} is out of range; allowed: {MIN_POINTS} to "
                              f"{MAX_EXTRAPOLATED_POINTS} with extrapolation (the finer grid doubles them)")
     bar = dict(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3, length_m=length_m,
                thickness_m=thickness_m, width_m=width_m, bc=bc, profile=profile)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from functools import cache
 from importlib import resources
 
+from ..checks import show_value
 from ..errors import ParameterError
 
 __all__ = ["Material", "material", "materials"]
@@ -113,5 +114,5 @@ def material(name: str) -> Material:
         return table[key]
     except KeyError:
         raise ParameterError(
-            f"unknown material {name!r}; available: {', '.join(table)}"
+            f"unknown material {show_value(name)}; available: {', '.join(table)}"
         ) from None

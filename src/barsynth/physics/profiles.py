@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import show_value
 from ..errors import ParameterError
 
 PROFILE_KINDS = ("uniform", "parabolic", "circular", "samples")
@@ -48,7 +49,7 @@ class Profile:
 
     def __post_init__(self) -> None:
         if self.kind not in PROFILE_KINDS:
-            raise ParameterError(f"parameter profile = {self.kind!r} is unknown; allowed: one of "
+            raise ParameterError(f"parameter profile = {show_value(self.kind)} is unknown; allowed: one of "
                                  f"{', '.join(PROFILE_KINDS)}")
         if self.kind in ("parabolic", "circular"):
             if not 0.0 <= self.depth <= 1.0 - THINNEST:

@@ -11,7 +11,9 @@ import tomllib
 from importlib import resources
 from typing import Any
 
-from ..errors import PresetError
+from ..checks import show_text
+
+from ..errors import BarsynthError, PresetError
 
 
 def _folder(model: str):
@@ -33,7 +35,7 @@ def load_preset(model: str, name: str) -> dict[str, Any]:
     names = preset_names(model)
     if name not in names:
         raise PresetError(
-            f"unknown preset {name!r} for model {model}; "
+            f"unknown preset {show_text(repr(name))} for model {model}; "
             f"available: {', '.join(names) if names else 'none'}"
         )
     return _document(_folder(model).joinpath(name + ".toml").read_text(encoding="utf-8"), f"preset {model}/{name}")
@@ -62,12 +64,19 @@ def preset_file_parameters(model: str, path: Any) -> dict[str, Any]:
     them), unvalidated; a file whose ``[preset] model`` names another model is refused."""
     from pathlib import Path
 
+    from ..checks import check_input_file, show_text
+
+    shown = repr(show_text(path))
+    try:
+        check_input_file(path, "preset file")  # a FIFO would hang the read, a device never end
+    except BarsynthError as exc:
+        raise PresetError(str(exc)) from None
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise PresetError(f"cannot read preset file {str(path)!r}: {getattr(exc, 'strerror', None) or exc}") from None
-    doc = _document(text, f"preset file {str(path)!r}")
+        raise PresetError(f"cannot read preset file {shown}: {getattr(exc, 'strerror', None) or exc}") from None
+    doc = _document(text, f"preset file {shown}")
     named = doc["preset"].get("model", model)
     if named != model:
-        raise PresetError(f"preset file {str(path)!r} is for model {named!r}, not {model!r}")
+        raise PresetError(f"preset file {shown} is for model {show_text(repr(named))}, not {model!r}")
     return dict(doc["parameters"])

@@ -41,6 +41,7 @@ from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..errors import BarsynthError, ModelError
+from ..checks import show_value
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_json,
                          shown_address)
 from .live import MAX_MESSAGE_BYTES, play
@@ -65,7 +66,7 @@ def _model(name: Any) -> Any:
     from ..models import get_model
 
     if not isinstance(name, str):
-        raise Refused(422, f"parameter model = {name!r} is not a model name")
+        raise Refused(422, f"parameter model = {show_value(name)} is not a model name")
     try:
         return get_model(name)
     except ModelError as exc:
@@ -79,7 +80,7 @@ def _fields(wish: Any, required: set[str], optional: set[str]) -> dict:
     if missing:
         raise Refused(422, f"missing {', '.join(sorted(missing))}")
     if unknown:
-        raise Refused(422, f"unknown field {sorted(unknown)[0]!r}; allowed: {', '.join(sorted(required | optional))}")
+        raise Refused(422, f"unknown field {show_value(sorted(unknown)[0])}; allowed: {', '.join(sorted(required | optional))}")
     return wish
 
 
@@ -95,7 +96,7 @@ def _rate(value: Any) -> float:
     if value is None:
         return 48000.0
     if isinstance(value, bool) or not isinstance(value, (int, float)) or value not in SAMPLE_RATES:
-        raise Refused(422, f"parameter sample_rate = {value!r} is not allowed; allowed: one of "
+        raise Refused(422, f"parameter sample_rate = {show_value(value)} is not allowed; allowed: one of "
                            f"{', '.join(str(r) for r in SAMPLE_RATES)} Hz")
     return float(value)
 
@@ -104,7 +105,7 @@ def _duration(value: Any, default: float = 2.0) -> float:
     if value is None:
         return default
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.01 <= value <= MAX_DURATION_S:
-        raise Refused(422, f"parameter duration_s = {value!r} is out of range; allowed: 0.01 to "
+        raise Refused(422, f"parameter duration_s = {show_value(value)} is out of range; allowed: 0.01 to "
                            f"{MAX_DURATION_S:g} s")
     return float(value)
 
@@ -114,7 +115,7 @@ def _width(value: Any) -> int:
         return 600
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
             or value != int(value) or not 16 <= value <= MAX_COLUMNS:
-        raise Refused(422, f"parameter width = {value!r} is out of range; allowed: whole numbers from 16 to "
+        raise Refused(422, f"parameter width = {show_value(value)} is out of range; allowed: whole numbers from 16 to "
                            f"{MAX_COLUMNS} pixels")
     return int(value)
 

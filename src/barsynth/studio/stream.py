@@ -12,7 +12,12 @@ messages are described in ``docs/studio.md``.
 
 - Level: the gain is set when a voice starts, from an offline render of its settings
   (peak at ``HEADROOM_DBFS``); a limiter lowers it (ramped within a block) when a block
-  would pass ``LIMIT`` and lets it back up by ``RECOVERY_DB_PER_S``.
+  would pass ``LIMIT`` and lets it back up by ``RECOVERY_DB_PER_S``, or faster after a deep cut:
+  whatever its depth, the gain is back within ``RELEASE_S`` of the loud sound's end.
+- Samples: every block of a voice passes :func:`~barsynth.models.rendering.check_samples`;
+  non-finite or exploding output is never sent: the voice is silenced (until its next trigger
+  or change) and the page gets the error line (``refused``). A ``start`` whose settings blow up
+  is refused the same way, and the stream goes on as it was.
 - A new ``start`` fades the old voice out over the cross-fade time while the new one
   begins; ``stop`` fades out, then silences the voice and stops sending.
 - Sleep: a stream whose sound has stayed below ``SILENCE`` for ``SLEEP_AFTER_S`` and
@@ -31,14 +36,17 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import BarsynthError
+from ..errors import BarsynthError, SamplesError
+from ..checks import show_value
 from ..models.crossfade import DEFAULT_FADE_S, CrossfadingVoice
+from ..models.rendering import check_samples
 
 BLOCK = 256  # samples per message
 LEAD_S = 0.032  # how far the server may run ahead of what the page has played
 HEADROOM_DBFS = -6.0
 LIMIT = 0.98
-RECOVERY_DB_PER_S = 6.0
+RECOVERY_DB_PER_S = 6.0  # the limiter's release after a shallow cut
+RELEASE_S = 0.5  # the longest release after any cut (a deep cut releases faster than RECOVERY_DB_PER_S)
 SILENCE = 1e-5  # -100 dBFS
 SLEEP_AFTER_S = 1.0
 AWAKE_AFTER_TRIGGER_S = 3.0
@@ -66,7 +74,7 @@ class StreamError(BarsynthError):
 def _whole(name: str, value: Any, low: int, high: int, unit: str = "") -> int:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
             or value != int(value) or not low <= value <= high:
-        raise StreamError(f"parameter {name} = {value!r} is out of range; allowed: whole numbers from "
+        raise StreamError(f"parameter {name} = {show_value(value)} is out of range; allowed: whole numbers from "
                           f"{low} to {high}{' ' + unit if unit else ''}")
     return int(value)
 
@@ -79,14 +87,14 @@ def parse_message(text: str) -> dict[str, Any]:
         raise StreamError("a stream message must be a JSON object; this is not valid JSON") from None
     if not isinstance(message, dict) or message.get("type") not in MESSAGES:
         kind = message.get("type") if isinstance(message, dict) else None
-        raise StreamError(f"parameter type = {kind!r} is not a stream message; allowed: one of "
+        raise StreamError(f"parameter type = {show_value(kind)} is not a stream message; allowed: one of "
                           f"{', '.join(MESSAGES)}")
     required, optional = MESSAGES[message["type"]]
     fields = set(message) - {"type"}
     if required - fields:
         raise StreamError(f"a {message['type']} message needs {', '.join(sorted(required - fields))}")
     if fields - required - optional:
-        raise StreamError(f"unknown field {sorted(fields - required - optional)[0]!r} in a {message['type']} "
+        raise StreamError(f"unknown field {show_value(sorted(fields - required - optional)[0])} in a {message['type']} "
                           f"message; allowed: {', '.join(sorted(required | optional)) or 'none'}")
     return message
 
@@ -99,6 +107,8 @@ class _Playing:
     voice: CrossfadingVoice
     base_gain: float
     gain: float
+    release_db_per_s: float = RECOVERY_DB_PER_S  # set by the last cut (see Stream._voice_block)
+    total_samples: int = 0  # the voice's samples so far (the time named in a samples error)
 
 
 class Stream:
@@ -118,6 +128,7 @@ class Stream:
         self._stopping = -1  # samples of the stop fade done, or -1
         self._silent = 0  # samples in a row below SILENCE
         self._since_trigger = 0
+        self._errors: list[str] = []  # samples errors to tell the page
 
     # -- state ------------------------------------------------------------------------
     @property
@@ -163,7 +174,7 @@ class Stream:
 
         name = message["model"]
         if not isinstance(name, str):
-            raise StreamError(f"parameter model = {name!r} is not a model name")
+            raise StreamError(f"parameter model = {show_value(name)} is not a model name")
         model = get_model(name)
         parameters = message.get("parameters") or {}
         if not isinstance(parameters, dict):
@@ -171,7 +182,7 @@ class Stream:
         resolved = model.table.resolve(parameters)
         rate = message.get("sample_rate", 48000)
         if self._playing is not None and rate != self.sample_rate:
-            raise StreamError(f"parameter sample_rate = {rate!r} differs from this stream's "
+            raise StreamError(f"parameter sample_rate = {show_value(rate)} differs from this stream's "
                               f"{self.sample_rate} Hz; allowed: {self.sample_rate} Hz (open a new stream)")
         return model, resolved, _whole("sample_rate", rate, MIN_STREAM_RATE, MAX_STREAM_RATE, "Hz")
 
@@ -183,6 +194,8 @@ class Stream:
             probe = model.render(resolved, duration_s=GAIN_PROBE_S, sample_rate=rate, normalize=False,
                                  dtype=np.float64)
             peak = float(np.max(np.abs(probe)))
+        except SamplesError:
+            raise  # these settings blow up: the start is refused
         except BarsynthError:
             peak = 0.0  # e.g. a twang with no audible mode: silent now, a change may make it sound
         gain = 10.0 ** (HEADROOM_DBFS / 20.0) / peak if peak > 0.0 and math.isfinite(peak) else 1.0
@@ -227,6 +240,7 @@ class Stream:
                 playing.voice.reset()  # what the stop would have left: silence, then the new strike
                 self._stopping = -1
             playing.voice.trigger()
+            playing.total_samples = 0
             self._since_trigger = 0
             self._wake()
         elif kind == "release":
@@ -245,10 +259,11 @@ class Stream:
         self._silent = 0
 
     def refused(self) -> list[str]:
-        """Messages of changes the voice refused when they were applied after a fade (then forgotten)."""
-        if self._playing is None or not self._playing.voice.refused:
-            return []
-        messages, self._playing.voice.refused = self._playing.voice.refused, []
+        """Messages of changes the voice refused when they were applied after a fade, and of voices
+        silenced because their samples blew up (then forgotten)."""
+        messages, self._errors = self._errors, []
+        if self._playing is not None and self._playing.voice.refused:
+            messages, self._playing.voice.refused = messages + self._playing.voice.refused, []
         return messages
 
     # -- sound ------------------------------------------------------------------------
@@ -274,16 +289,26 @@ class Stream:
 
     def _voice_block(self, playing: _Playing, n: int) -> np.ndarray:
         x = playing.voice.process(n, dtype=np.float64)
-        if not np.all(np.isfinite(x)):  # never send a NaN: silence the voice instead
+        try:
+            check_samples(x, playing.voice.parameters, self.sample_rate, start=playing.total_samples)
+            playing.total_samples += n
+        except SamplesError as exc:  # never send a blow-up: silence the voice and say why
             playing.voice.reset()
+            playing.total_samples = 0
+            if len(self._errors) < MAX_LEAVING:
+                self._errors.append(str(exc))
             x = np.zeros(n)
         magnitude = np.abs(x)
         peak = float(np.max(magnitude)) if n else 0.0
         rate = self.sample_rate
-        wanted = playing.gain * 10.0 ** (RECOVERY_DB_PER_S * n / rate / 20.0)
+        wanted = playing.gain * 10.0 ** (playing.release_db_per_s * n / rate / 20.0)
         wanted = min(playing.base_gain, wanted)
         if peak * wanted > LIMIT:
             wanted = LIMIT / peak
+            # the release that takes this cut back to the voice's gain within RELEASE_S (never slower
+            # than RECOVERY_DB_PER_S): a single spike leaves no long silence behind
+            depth_db = 20.0 * math.log10(playing.base_gain / wanted) if wanted > 0.0 else 0.0
+            playing.release_db_per_s = max(RECOVERY_DB_PER_S, depth_db / RELEASE_S)
         ramp = min(n, 32) if wanted < playing.gain else n  # down fast (32 samples), up slowly
         gains = np.full(n, wanted)
         gains[:ramp] = playing.gain + (wanted - playing.gain) * (np.arange(1, ramp + 1) / ramp)
