@@ -12,6 +12,9 @@ Limits on every connection (:func:`server_config`), whichever server:
 - ``MAX_CONNECTIONS`` (lowered to the open-file limit less ``FD_RESERVE``): one more connection
   closes the one that has waited longest without a complete request (idle or incomplete),
   so slow clients give way to new ones and busy requests are never cut.
+- ``BACKLOG``: connections the kernel queues before the server takes them; the event loop
+  takes up to this many at once before the cap can act, so ``FD_RESERVE`` leaves room for
+  two such batches and the server's own files (worker pipes, the listening socket).
 - ``LOG_EVERY_S``: a repeated log line (running out of file descriptors, bad requests) is
   written at most once this often, with a count of the ones left out, and no traceback for
   running out of file descriptors.
@@ -43,7 +46,8 @@ BODY_TIMEOUT_S = 10.0
 KEEP_ALIVE_S = 5
 MAX_HEADER_BYTES = 16 * 1024
 MAX_CONNECTIONS = 1000
-FD_RESERVE = 64
+BACKLOG = 64
+FD_RESERVE = 3 * BACKLOG
 LOG_EVERY_S = 5.0
 WILDCARD_HOSTS = ("", "0.0.0.0", "::")
 SECURITY_HEADERS = {
@@ -352,6 +356,7 @@ def server_config(app: Any, **options: Any) -> uvicorn.Config:
     limits of :func:`guarded_protocol` may be given as ``protocol={...}``."""
     limits = options.pop("protocol", {})
     settings = {"log_level": "warning", "access_log": False, "lifespan": "off", "timeout_keep_alive": KEEP_ALIVE_S,
+                "backlog": BACKLOG,
                 "h11_max_incomplete_event_size": limits.get("max_header_bytes", MAX_HEADER_BYTES), **options}
     config = uvicorn.Config(app, http=guarded_protocol(**limits), **settings)
     quiet_logs()  # after uvicorn has set its loggers up
@@ -370,7 +375,7 @@ def listen_socket(host: str, port: int) -> socket.socket:
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind(address)
-        sock.listen(128)  # connections wait in the backlog until uvicorn takes them
+        sock.listen(BACKLOG)  # connections wait in the backlog until uvicorn takes them
     except OSError as exc:
         sock.close()
         raise BarsynthError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None

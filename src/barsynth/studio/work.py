@@ -101,6 +101,7 @@ class Workers:
         self._idle: list[Any] = []  # process executors waiting for a job
         self._busy: set[Any] = set()
         self._turns: asyncio.Semaphore | None = None
+        self._closed = False
 
     def _new_process(self) -> Any:
         executor = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_start_worker)
@@ -122,11 +123,12 @@ class Workers:
         if not self.processes:
             return
         self._busy.discard(executor)
-        if healthy:
+        if healthy and not self._closed:
             self._idle.append(executor)
         else:
             _kill(executor)
-            self._idle.append(self._new_process())
+            if not self._closed:
+                self._idle.append(self._new_process())
 
     def processes_running(self) -> list[int]:
         """The process ids of the workers (for tests and benchmarks)."""
@@ -194,6 +196,7 @@ class Workers:
 
     def close(self) -> None:
         """Stop the workers now, renders under way included (the server is stopping)."""
+        self._closed = True
         for executor in (*self._idle, *self._busy):
             _kill(executor)
         self._idle, self._busy = [], set()
