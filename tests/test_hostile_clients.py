@@ -111,7 +111,9 @@ def test_oversized_headers_are_refused_on_both_servers(studio, listening):
     for port in (studio[0], listening):
         filler = "".join(f"X-Filler-{i}: {'a' * 100}\r\n" for i in range(MAX_HEADER_BYTES // 100 + 10))
         answer = exchange(port, f"GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n{filler}\r\n".encode())
-        assert answer == b"" or answer.startswith(b"HTTP/1.1 431"), answer[:80]
+        assert answer.startswith(b"HTTP/1.1 431") and b"headers too large" in answer, answer[:80]
+        unfinished = exchange(port, f"GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n{filler}".encode())
+        assert unfinished.startswith(b"HTTP/1.1 431"), unfinished[:80]  # not waiting for the end
         assert status(port, "127.0.0.1") == 200  # and the server goes on
 
 
@@ -126,19 +128,41 @@ def test_a_slow_header_and_a_silent_client_are_dropped_after_the_timeout(studio)
         assert time.monotonic() - started < WAIT_S
 
 
-def test_a_slow_body_is_dropped_and_a_mid_body_disconnect_leaves_no_traceback(studio, caplog):
+@contextlib.contextmanager
+def logged():
+    """The records the servers' loggers write meanwhile (uvicorn's do not reach the root logger)."""
+    records: list[logging.LogRecord] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            records.append(record)
+
+    keep = Keep(logging.DEBUG)
+    loggers = [logging.getLogger(name) for name in ("uvicorn", "uvicorn.error", "asyncio", "")]
+    for logger in loggers:
+        logger.addHandler(keep)
+    try:
+        yield records
+    finally:
+        for logger in loggers:
+            logger.removeHandler(keep)
+
+
+def test_a_slow_body_is_dropped_and_a_mid_body_disconnect_leaves_no_traceback(studio):
     port = studio[0]
     head = (b"POST /api/render HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
             b"Content-Length: 200\r\n\r\n{\"model\": ")
-    with caplog.at_level(logging.INFO):
+    with logged() as records:
         with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as slow:
             slow.sendall(head)
             assert slow.recv(100) == b""  # body_timeout_s = 1 here
-        with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as quitter:
-            quitter.sendall(head)
-        time.sleep(0.3)
+        for _ in range(3):
+            with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as quitter:
+                quitter.sendall(head)
+        time.sleep(0.5)
         assert status(port, "127.0.0.1") == 200
-    assert not [r for r in caplog.records if r.exc_info or r.levelno >= logging.ERROR], caplog.text
+    assert not [r for r in records if r.exc_info or r.levelno >= logging.WARNING], \
+        [r.getMessage() for r in records]
 
 
 def _raise_nofile(wanted: int) -> None:
