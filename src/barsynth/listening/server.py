@@ -28,13 +28,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import uvicorn
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, hosts_for, listen_socket, read_json,
-                         shown_address, wav_bytes)
+                         server_config, shown_address, wav_bytes)
 from .config import ListeningTest, load_test
 from .session import Session, fingerprint, make_plan
 from .store import ResultsStore
@@ -187,7 +186,7 @@ def serve(config: str | Path, results: str | Path, *, host: str = "127.0.0.1", p
                 echo("barsynth listen: warning: listening beyond this machine; anyone who can reach it can "
                      "take the test")
             sys.stdout.flush()
-            server = QuietStop(uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off"))
+            server = QuietStop(server_config(app))
             server.run(sockets=[sock])
     finally:
         sock.close()

@@ -4,9 +4,11 @@ Every model's parameter table drives what the page shows (names, units, ranges,
 scales, choices); everything sent back is validated by the same table, so a bad value
 gets one line naming the parameter, the value, the allowed range and the unit, with a
 4xx status, and the server keeps serving. Renders are bounded in length
-(``MAX_DURATION_S``) and in number at once (``MAX_RENDERS``; the rest wait up to
-``RENDER_WAIT_S``, then get 503), and run in worker processes (:mod:`barsynth.studio.work`),
-so they never hold up a live stream. Live streams are
+(``MAX_DURATION_S``), in number at once (``MAX_RENDERS``; the rest wait up to
+``RENDER_WAIT_S``, then get 503) and in time (``JOB_TIME_LIMIT_S``, then 503), are stopped
+when their client disconnects, and run in worker processes (:mod:`barsynth.studio.work`),
+so they never hold up a live stream. Slow or idle connections are dropped and their number
+capped (:func:`barsynth.webserver.server_config`). Live streams are
 bounded too (``MAX_STREAMS``; one more is closed with code 1013 and a reason).
 
 HTTP API (JSON in and out; errors are ``{"error": "one line"}``):
@@ -35,7 +37,6 @@ from importlib import resources
 from typing import Any
 from urllib.parse import urlsplit
 
-import uvicorn
 from fastapi import FastAPI, Request, WebSocket
 from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
@@ -43,7 +44,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from ..errors import BarsynthError, ModelError
 from ..checks import show_value
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_json,
-                         shown_address)
+                         server_config, shown_address)
 from .live import MAX_MESSAGE_BYTES, play
 from .pictures import MAX_COLUMNS
 from .presets_file import preset_toml
@@ -205,7 +206,8 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
         model = _model(wish["model"])
         resolved = _resolved(model, wish.get("parameters"))
         rate, seconds = _rate(wish.get("sample_rate")), _duration(wish.get("duration_s"))
-        wav = await workers.run(render_wav, model.name, model.table.as_dict(resolved), seconds, rate)
+        wav = await workers.run(render_wav, model.name, model.table.as_dict(resolved), seconds, rate,
+                                gone=request.is_disconnected)
         return Response(wav, media_type="audio/wav",
                         headers={**_NO_STORE, "Content-Disposition": f'attachment; filename="{model.name}.wav"'})
 
@@ -215,7 +217,8 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
         model = _model(wish["model"])
         resolved = _resolved(model, wish.get("parameters"))
         rate = _rate(wish.get("sample_rate"))
-        found = await workers.run(modes_json, model.name, model.table.as_dict(resolved), rate)
+        found = await workers.run(modes_json, model.name, model.table.as_dict(resolved), rate,
+                                  gone=request.is_disconnected)
         return Response(found, media_type="application/json", headers=_NO_STORE)
 
     @app.post("/api/picture")
@@ -226,7 +229,7 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
         resolved = _resolved(model, wish.get("parameters"))
         rate, seconds = _rate(wish.get("sample_rate")), _duration(wish.get("duration_s"), 1.5)
         found = await workers.run(picture_json, model.name, model.table.as_dict(resolved), rate, seconds,
-                                  _width(wish.get("width")))
+                                  _width(wish.get("width")), gone=request.is_disconnected)
         return Response(found, media_type="application/json", headers=_NO_STORE)
 
     @app.post("/api/preset-file")
@@ -281,8 +284,8 @@ def serve(*, host: str = "127.0.0.1", port: int = DEFAULT_PORT, echo: Callable[[
         if sock.getsockname()[0] not in ("127.0.0.1", "::1"):
             echo("barsynth studio: warning: listening beyond this machine; anyone who can reach it can use it")
         sys.stdout.flush()
-        config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off", timeout_graceful_shutdown=2,
-                                ws_max_size=4 * MAX_MESSAGE_BYTES, ws_ping_interval=20.0, ws_ping_timeout=20.0)
+        config = server_config(app, timeout_graceful_shutdown=2, ws_max_size=4 * MAX_MESSAGE_BYTES,
+                               ws_ping_interval=20.0, ws_ping_timeout=20.0)
         QuietStop(config).run(sockets=[sock])
     finally:
         sock.close()

@@ -5,7 +5,9 @@ JSON), so in the server's own process they would hold up the live streams, whose
 must go out every few milliseconds. They run instead in ``MAX_RENDERS`` worker
 processes at a lower scheduling priority (nice 10), so a saturated studio slows its
 downloads and pictures, not its sound. At most ``MAX_RENDERS`` jobs run at once; the
-rest wait up to ``RENDER_WAIT_S`` for a turn and are then refused with 503.
+rest wait up to ``RENDER_WAIT_S`` for a turn and are then refused with 503. A job whose
+client disconnects is stopped (its worker process is killed and replaced), and so is one
+that runs longer than ``JOB_TIME_LIMIT_S`` (the client gets a 503 and one line).
 
 The workers take plain data (a model's name and a dict of values, already checked by
 the server) and give back bytes ready to send, so nothing but small messages crosses
@@ -18,6 +20,7 @@ import asyncio
 import json
 import multiprocessing
 import os
+import sys
 import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -28,6 +31,8 @@ from ..webserver import Refused, wav_bytes
 
 MAX_RENDERS = 2
 RENDER_WAIT_S = 10.0
+JOB_TIME_LIMIT_S = 60.0
+DISCONNECT_POLL_S = 0.25
 WORKER_NICENESS = 10
 
 
@@ -79,48 +84,135 @@ def modes_json(model_name: str, values: dict, sample_rate: float) -> bytes:
 
 class Workers:
     """A bounded pool of worker processes (or threads, with ``processes=False``, for tests
-    that count what runs). Made on first use, in the event loop that uses it."""
+    that count what runs). Made on first use, in the event loop that uses it.
 
-    def __init__(self, *, count: int = MAX_RENDERS, processes: bool = True):
+    Each process is an executor of its own, so the one running a job can be stopped: a job
+    whose client has gone (``gone()`` says so, checked every ``DISCONNECT_POLL_S``) or that
+    runs over ``time_limit_s`` (default ``JOB_TIME_LIMIT_S``) has its process killed, and a
+    new process is started in its place at once. Threads cannot be stopped; their job is
+    abandoned (its turn is freed) and runs to its end.
+    """
+
+    def __init__(self, *, count: int = MAX_RENDERS, processes: bool = True, time_limit_s: float | None = None):
         self.count = count
         self.processes = processes
-        self._pool: Any = None
+        self.time_limit_s = time_limit_s
+        self._pool: Any = None  # the thread pool
+        self._idle: list[Any] = []  # process executors waiting for a job
+        self._busy: set[Any] = set()
         self._turns: asyncio.Semaphore | None = None
+        self._closed = False
 
-    def _executor(self) -> Any:
-        if self._pool is None:
-            if self.processes:
-                self._pool = ProcessPoolExecutor(self.count, mp_context=multiprocessing.get_context("spawn"),
-                                                 initializer=_start_worker)
-            else:
+    def _new_process(self) -> Any:
+        executor = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_start_worker)
+        executor.submit(os.getpid)  # start the process now, not when the next job comes
+        return executor
+
+    def _take(self) -> Any:
+        if not self.processes:
+            if self._pool is None:
                 from concurrent.futures import ThreadPoolExecutor
 
                 self._pool = ThreadPoolExecutor(self.count, thread_name_prefix="barsynth-studio")
-        return self._pool
+            return self._pool
+        executor = self._idle.pop() if self._idle else self._new_process()
+        self._busy.add(executor)
+        return executor
 
-    async def run(self, work: Callable[..., Any], *args: Any) -> Any:
-        """``work(*args)`` in a worker, when one is free within ``RENDER_WAIT_S``; else 503."""
+    def _give_back(self, executor: Any, *, healthy: bool) -> None:
+        if not self.processes:
+            return
+        self._busy.discard(executor)
+        if healthy and not self._closed:
+            self._idle.append(executor)
+        else:
+            _kill(executor)
+            if not self._closed:
+                self._idle.append(self._new_process())
+
+    def processes_running(self) -> list[int]:
+        """The process ids of the workers (for tests and benchmarks)."""
+        return [p.pid for e in (*self._idle, *self._busy) for p in (getattr(e, "_processes", None) or {}).values()
+                if p.is_alive()]
+
+    async def _turn(self, gone: Callable[[], Any] | None) -> None:
+        """Wait up to ``RENDER_WAIT_S`` for a free worker (else 503), or until the client has gone."""
         from . import work as this
 
         if self._turns is None:
             self._turns = asyncio.Semaphore(self.count)
+        loop = asyncio.get_running_loop()
+        until = loop.time() + this.RENDER_WAIT_S
+        acquire = asyncio.ensure_future(self._turns.acquire())
         try:
-            await asyncio.wait_for(self._turns.acquire(), this.RENDER_WAIT_S)
-        except TimeoutError:
-            raise Refused(503, f"the studio is busy ({self.count} renders at once); try again") from None
+            while not acquire.done():
+                await asyncio.wait({acquire}, timeout=min(this.DISCONNECT_POLL_S, max(0.0, until - loop.time())))
+                if acquire.done():
+                    break
+                if gone is not None and await gone():
+                    raise Refused(400, "the client went away before its job started")
+                if loop.time() >= until:
+                    raise Refused(503, f"the studio is busy ({self.count} renders at once); try again")
+        except BaseException:
+            acquire.cancel()
+            if acquire.done() and not acquire.cancelled():
+                self._turns.release()
+            raise
+
+    async def run(self, work: Callable[..., Any], *args: Any, gone: Callable[[], Any] | None = None) -> Any:
+        """``work(*args)`` in a worker, when one is free within ``RENDER_WAIT_S``; else 503. Stopped
+        when ``gone()`` (an async callable, e.g. ``request.is_disconnected``) becomes true or after the
+        time limit (503)."""
+        from . import work as this
+
+        limit = self.time_limit_s if self.time_limit_s is not None else this.JOB_TIME_LIMIT_S
+        await self._turn(gone)
+        assert self._turns is not None
+        loop = asyncio.get_running_loop()
+        executor, healthy = self._take(), False
         try:
-            return await asyncio.get_running_loop().run_in_executor(self._executor(), work, *args)
-        except BrokenProcessPool:  # a worker died (killed, out of memory): a new pool next time
-            self._pool = None
+            job = loop.run_in_executor(executor, work, *args)
+            job.add_done_callback(_retrieve)  # a stopped job's error is nobody's to log
+            started = loop.time()
+            while True:
+                done, _ = await asyncio.wait({job}, timeout=this.DISCONNECT_POLL_S)
+                if done:
+                    result = job.result()
+                    healthy = True
+                    return result
+                if loop.time() - started > limit:
+                    raise Refused(503, f"the job ran over the studio's time limit of {limit:g} s and was stopped; "
+                                       "ask for less (shorter, a lower sample rate, fewer points)")
+                if gone is not None and await gone():
+                    raise Refused(400, "the client went away; its job was stopped")
+        except BrokenProcessPool:  # a worker died (killed, out of memory): a new one takes its place
             raise Refused(503, "a studio worker stopped while rendering; try again") from None
+        except Exception:  # the job's own error (a bad value): the worker is fine
+            healthy = not isinstance(sys.exc_info()[1], Refused)
+            raise
         finally:
+            self._give_back(executor, healthy=healthy)
             self._turns.release()
 
     def close(self) -> None:
         """Stop the workers now, renders under way included (the server is stopping)."""
+        self._closed = True
+        for executor in (*self._idle, *self._busy):
+            _kill(executor)
+        self._idle, self._busy = [], set()
         if self._pool is not None:
-            processes = list(getattr(self._pool, "_processes", {}).values()) if self.processes else []
             self._pool.shutdown(wait=False, cancel_futures=True)
-            for process in processes:
-                process.terminate()
             self._pool = None
+
+
+def _kill(executor: Any) -> None:
+    """Stop a one-process executor at once, its job under way included."""
+    processes = list((getattr(executor, "_processes", None) or {}).values())
+    executor.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.kill()
+
+
+def _retrieve(job: Any) -> None:
+    if not job.cancelled():
+        job.exception()
