@@ -28,6 +28,16 @@ CHROMIUM_ARGS = [  # the closed network refuses Chromium's background connection
     "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
 ]
 START_TIMEOUT_S = 120.0  # the first start may compile numba kernels
+EXPECT_TIMEOUT_MS = 30_000  # Playwright's expect() waits this long (its 5 s is short on a machine busy elsewhere)
+
+
+def _patient_expect() -> None:
+    from playwright.sync_api import expect
+
+    expect.set_options(timeout=EXPECT_TIMEOUT_MS)
+
+
+_patient_expect()
 
 
 @contextlib.contextmanager

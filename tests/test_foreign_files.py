@@ -101,6 +101,19 @@ def test_a_new_results_file_is_marked_and_an_earlier_barsynths_file_is_accepted_
     assert application_id(new) == APPLICATION_ID
 
 
+def test_an_earlier_barsynths_file_killed_before_a_checkpoint_is_accepted(tmp_path):
+    """Its tables are still only in the write-ahead log beside it, which an immutable look misses."""
+    from barsynth.listening.store import SCHEMA
+
+    old = tmp_path / "old.db"
+    killed = (f"import os, sqlite3; db = sqlite3.connect({str(old)!r}, isolation_level=None); "
+              f"db.execute('PRAGMA journal_mode=WAL'); db.execute('PRAGMA wal_autocheckpoint=0'); "
+              f"db.executescript({SCHEMA!r}); os._exit(0)")
+    subprocess.run([sys.executable, "-c", killed], check=True, timeout=60)
+    assert Path(f"{old}-wal").stat().st_size > 0 and application_id(old) == 0
+    assert check_results_file(old) == "legacy"
+
+
 # -- FIFOs and devices ------------------------------------------------------------------------------
 @pytest.fixture
 def fifo(tmp_path):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import json
 import logging
 import os
@@ -210,17 +211,52 @@ def test_a_cap_closes_the_longest_waiting_idle_connection_not_a_busy_one():
     async def fast():
         return JSONResponse({"ok": True})
 
-    with running(app, max_connections=4) as port:
+    # The header timeout is far off: only the cap can close an idle connection here.
+    with running(app, max_connections=4, header_timeout_s=120.0) as port:
         busy = socket.create_connection(("127.0.0.1", port), timeout=WAIT_S)
         busy.sendall(b"GET /slow HTTP/1.1\r\nHost: x\r\n\r\n")
         time.sleep(1.0)  # its request is being answered (a loaded machine takes its time)
-        idle = [socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) for _ in range(5)]
+        idle = []
+        for _ in range(5):
+            idle.append(socket.create_connection(("127.0.0.1", port), timeout=WAIT_S))
+            time.sleep(0.1)  # accepted in this order
         time.sleep(0.5)
         assert b"200" in exchange(port, b"GET /fast HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
-        assert idle[0].recv(10) == b""  # the oldest idle ones made room
+        for client in idle[:3]:  # 4 allowed: busy + 5 idle + /fast -> the 3 oldest idle made room
+            assert client.recv(10) == b""
+        idle[-1].settimeout(0.5)
+        with pytest.raises(TimeoutError):
+            idle[-1].recv(10)  # the newest idle one is still open
         assert busy.recv(1000).startswith(b"HTTP/1.1 200")  # the busy one was kept
         for client in (busy, *idle):
             client.close()
+
+
+def test_a_client_that_stops_reading_is_cut_off_after_the_send_timeout():
+    from fastapi import FastAPI
+    from fastapi.responses import Response
+
+    app = FastAPI()
+    size = 64 * 1024 * 1024  # far beyond what the two sockets' buffers hold
+
+    @app.get("/big")
+    async def big():
+        return Response(b"x" * size, media_type="application/octet-stream")
+
+    with running(app, send_timeout_s=1.0) as port:
+        reader = socket.socket()
+        reader.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        reader.settimeout(WAIT_S)
+        reader.connect(("127.0.0.1", port))
+        reader.sendall(b"GET /big HTTP/1.1\r\nHost: x\r\n\r\n")
+        time.sleep(4.0)  # reads nothing: the server's buffer fills and its send timer runs out
+        received = 0
+        with contextlib.suppress(ConnectionResetError):
+            while chunk := reader.recv(1 << 20):
+                received += len(chunk)
+        reader.close()
+        assert 0 < received < size  # cut off, not waited for
+        assert b"200" in exchange(port, b"GET /docs HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
 
 
 def test_running_out_of_file_descriptors_is_logged_once_in_a_while_without_a_traceback():
@@ -272,11 +308,34 @@ def test_a_job_over_its_time_limit_is_stopped_with_one_line_and_its_worker_repla
         workers.close()
 
 
+def test_a_worker_that_cannot_start_gives_503_and_its_turn_comes_back(monkeypatch):
+    workers = Workers(count=1)
+
+    def out_of_files():
+        raise OSError(errno.EMFILE, "Too many open files")
+
+    async def main():
+        with monkeypatch.context() as patch:
+            patch.setattr(workers, "_new_process", out_of_files)
+            for _ in range(3):  # one turn only: a lost turn would make the next wait, then 'busy'
+                with pytest.raises(Refused) as refused:
+                    await workers.run(_sleep, 0.0)
+                assert refused.value.status == 503 and "cannot start a worker now (Too many open files)" \
+                    in str(refused.value)
+        return await workers.run(_sleep, 0.0)  # processes can be had again
+
+    try:
+        pid = asyncio.run(asyncio.wait_for(main(), 90))
+        assert pid in workers.processes_running()
+    finally:
+        workers.close()
+
+
 HEAVY = {"model": "fd", "parameters": {"points": 400, "oversampling": 8}, "duration_s": 20.0, "sample_rate": 96000}
 SMALL = {"model": "banded", "duration_s": 0.2, "sample_rate": 22050}
 
 
-SMALL_RENDER_S = 30.0  # the longest a small render may take on a loaded machine (the heavy one takes 30 s or more)
+SMALL_RENDER_S = 120.0  # how long a small render may take in a fresh worker at nice 10 on a machine busy elsewhere
 
 
 def post(port: int, body: dict) -> socket.socket:
@@ -289,17 +348,18 @@ def post(port: int, body: dict) -> socket.socket:
 
 def test_abandoned_heavy_renders_are_stopped_and_free_their_workers(studio):
     port, workers = studio
-    small = post(port, SMALL)  # warm up: both workers started
-    assert small.recv(20).startswith(b"HTTP/1.1 200")
-    small.close()
+    warm = [post(port, SMALL) for _ in range(2)]  # two at once: both worker processes started
+    for small in warm:
+        assert small.recv(20).startswith(b"HTTP/1.1 200")
+        small.close()
     before = set(workers.processes_running())
     heavy = [post(port, HEAVY) for _ in range(2)]
     time.sleep(1.0)
     for client in heavy:
         client.close()
-    started = time.monotonic()
     small = post(port, SMALL)
-    assert small.recv(20).startswith(b"HTTP/1.1 200")  # not 503 after RENDER_WAIT_S
+    # 200, not 503 after the studio's RENDER_WAIT_S (both workers would still be on the heavy
+    # renders, 30 s or more each): no wall-clock bound, so a loaded machine cannot fail it.
+    assert small.recv(20).startswith(b"HTTP/1.1 200")
     small.close()
-    assert time.monotonic() - started < SMALL_RENDER_S
     assert len(before - set(workers.processes_running())) >= 1  # the heavy renders' processes are gone

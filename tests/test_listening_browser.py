@@ -78,7 +78,7 @@ def play_every_sound(page: Page, section: str) -> None:
     until(page, f"() => player.src.endsWith('/api/audio/{last}') && player.ended && player.duration > 0.3")
 
 
-def until(page: Page, script: str, timeout_s: float = 10.0) -> None:
+def until(page: Page, script: str, timeout_s: float = 30.0) -> None:
     """Poll a page expression (wait_for_function would evaluate a string, which the page's CSP forbids)."""
     deadline = time.monotonic() + timeout_s
     while not page.evaluate(script):

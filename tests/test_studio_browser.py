@@ -34,7 +34,8 @@ from playwright.sync_api import Page, expect
 STUDIO_COMMAND = [sys.executable, "-m", "barsynth", "studio", "--port", "0"]
 RATE = 48000
 VIEWPORT = {"width": 1400, "height": 900}
-NEW_BLOCKS_S = 5.0  # how long the page may wait for new audio before a stall is a failure (a loaded machine)
+NEW_BLOCKS_S = 15.0  # how long the page may wait for new audio before a stall is a failure (a loaded machine)
+PICTURE_S = 60.0  # how long a picture may take: rendered in a worker at nice 10, which CPU hogs starve
 
 
 class Studio(ServerProcess):
@@ -120,12 +121,12 @@ def open_studio(browser, url: str, errors: list[str]):
     page = context.new_page()
     watch(page, errors)
     page.goto(url)
-    until(page, "() => window.studio && studio.ready && studio.lastPicture !== null", 30, "the first pictures")
+    until(page, "() => window.studio && studio.ready && studio.lastPicture !== null", PICTURE_S, "the first pictures")
     return context, page
 
 
 def pictures_of(page: Page, model: str, name: str | None = None, value: float | None = None,
-                timeout_s: float = 15.0) -> dict:
+                timeout_s: float = PICTURE_S) -> dict:
     """Wait until the pictures show ``model`` (with parameter ``name`` at ``value``) and return them."""
     check = f"p.model === {json.dumps(model)}"
     if name is not None:
@@ -210,10 +211,12 @@ def test_a_twang_played_live_changed_saved_and_shared(browser, studio, shots):
     assert changed["spectrogramHash"] != first["spectrogramHash"]
     assert table_rows(page)[0][2] != rows[0][2]  # the lowest mode moved up with a shorter ruler
     assert changed["table"][0]["frequency_hz"] > 1.9 * first["table"][0]["frequency_hz"]
-    page.wait_for_timeout(400)
+    until(page, "() => studio.lastSet !== null && studio.heardSetId >= studio.lastSet.id", NEW_BLOCKS_S,
+          "the last change to be heard")
     live = figures(page)
     assert live["state"] == "playing" and live["errors"] == []
-    assert live["sets"] >= 6 and len(live["latencies"]) >= 6, live  # every change sent was heard
+    # 13 moves, merged while a change is on its way (more merging on a busier machine); the last is heard
+    assert 2 <= live["sets"] <= 13 and len(live["latencies"]) >= 1, live
     median = statistics.median(live["latencies"])
     assert 0 < live["maxBuffered"] < 0.1 * RATE, live  # the server's lead bounds the buffer, loaded or not
     print(f"live twang: {live['sets']} changes sent, heard after {median:.0f} ms (median; "
@@ -273,7 +276,7 @@ def test_a_twang_played_live_changed_saved_and_shared(browser, studio, shots):
     other = context.new_page()
     watch(other, errors)
     other.goto(link)
-    until(other, "() => window.studio && studio.ready", 20)
+    until(other, "() => window.studio && studio.ready", PICTURE_S)
     expect(other.locator("#model")).to_have_value("twang")
     expect(other.locator("#num-length_m")).to_have_value("0.2001")
     expect(other.locator("#param-length_m")).to_have_value("158")
@@ -295,7 +298,7 @@ def test_a_twang_played_live_changed_saved_and_shared(browser, studio, shots):
     other = context.new_page()
     watch(other, errors)
     other.goto(link)
-    until(other, "() => window.studio && studio.ready", 20)
+    until(other, "() => window.studio && studio.ready", PICTURE_S)
     expect(other.locator("#preset")).to_have_value("steel-30cm")
     expect(other.locator("#num-q")).to_have_value("250")
     expect(other.locator("#num-youngs_modulus_pa")).to_have_value("2e11")  # the preset's, not the default
@@ -428,7 +431,7 @@ def test_an_allpass_slider_dragged_while_it_plays_keeps_the_stream_and_is_heard(
     errors: list[str] = []
     context, page = open_studio(browser, studio.url, errors)
     page.select_option("#model", "allpass")
-    pictures_of(page, "allpass", "length_m", 0.3, timeout_s=20)
+    pictures_of(page, "allpass", "length_m", 0.3)
     page.click("#play")
     until(page, "() => studio.blocksReceived > 20 && studio.samplesPlayed > 9600", 10, "allpass's live sound")
     slider = page.locator("#param-length_m")
@@ -472,7 +475,7 @@ def test_every_other_model_has_its_sliders_and_pictures(browser, studio, shots, 
     errors: list[str] = []
     context, page = open_studio(browser, studio.url, errors)
     page.select_option("#model", model)
-    shown = pictures_of(page, model, timeout_s=20)
+    shown = pictures_of(page, model)
     entry = next(m for m in json.load(urllib.request.urlopen(studio.url + "api/models", timeout=10))["models"]
                  if m["name"] == model)
     assert page.locator("#controls [id^=param-]").count() == len(entry["parameters"])
@@ -506,7 +509,7 @@ def test_every_other_model_has_its_sliders_and_pictures(browser, studio, shots, 
     if model == "fd":  # a choice changes the pictures
         before = shown["spectrogramHash"]
         page.select_option("#param-bc", "clamped-free")
-        until(page, "() => studio.lastPicture.values && studio.lastPicture.values.bc === 'clamped-free'", 20)
+        until(page, "() => studio.lastPicture.values && studio.lastPicture.values.bc === 'clamped-free'", PICTURE_S)
         assert picture(page)["spectrogramHash"] != before
     shots(page, f"06-{model}")
     assert errors == []

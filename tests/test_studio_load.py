@@ -88,8 +88,8 @@ def test_fifty_clients_for_three_seconds_without_a_failure(studio):
     print(text)
     # The benchmark counts a documented 503 "busy" as a failure too; on a machine loaded by
     # other work, renders can queue past RENDER_WAIT_S, so here only the rest must be none.
-    busy = sum(results.busy.values())
-    assert results.failure_count - busy == 0, text
+    other = {where: n for where, n in results.failures.items() if "the studio is busy" not in where[1]}
+    assert not other, text
     for endpoint in load.ENDPOINTS:
         assert results.requests(endpoint) > 0, f"{endpoint} was not exercised\n{text}"
     assert len(results.streams) == 4
@@ -125,6 +125,8 @@ BAD_REQUESTS = [  # path, body (JSON, or bytes with its content type), status, w
     ("/api/render", {"model": "twang", "volume": 11}, 422, ["unknown field 'volume'"]),
     ("/api/render", {"model": "twang", "sample_rate": 12345}, 422, ["parameter sample_rate = 12345"]),
     ("/api/picture", {"model": "twang", "width": 3}, 422, ["parameter width = 3"]),
+    ("/api/picture", (b'{"model": "twang", "width": 1' + b'0' * 400 + b'}', "application/json"), 422,
+     ["parameter width = <int>", "out of range"]),  # beyond float range: no overflow
     ("/api/describe", {"model": "banded", "parameters": [1, 2]}, 422, ["parameters must be a JSON object"]),
     ("/api/preset-file", {"model": "fd", "parameters": {}, "description": "x" * 201}, 422, ["description"]),
     ("/api/render", (b'{"model": "twang", "parameters": {"q": ' + b"[" * 5000 + b"]" * 5000 + b"}}",
@@ -234,6 +236,7 @@ BAD_MESSAGES = [  # message, words of the error line
     ('{"type": "set", "id": 2, "parameters": {"wobble": 1}}', ["unknown parameter 'wobble'"]),
     ('{"type": "set", "id": -3, "parameters": {}}', ["parameter id = -3"]),
     ('{"type": "played", "samples": "many"}', ["parameter samples = 'many'"]),
+    ('{"type": "played", "samples": 1' + '0' * 400 + '}', ["parameter samples = <int>", "out of range"]),
     ('{"type": "start", "model": "nope"}', ["unknown model 'nope'"]),
     ('{"type": "start", "model": "twang", "sample_rate": 44100}', ["sample_rate = 44100", "48000"]),
     ('{"type": "set", "id": 4, "parameters": {"q": NaN}}', ["not valid JSON"]),

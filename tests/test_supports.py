@@ -11,7 +11,7 @@ of the module with ``-s``).
 
 from __future__ import annotations
 
-import hashlib
+import math
 
 import numpy as np
 import pytest
@@ -143,27 +143,48 @@ def test_a_banded_pluck_at_a_node_of_every_mode_is_bounded(parameters):
     assert np.all(np.isfinite(x)) and float(np.max(np.abs(x))) <= BOUND * away
 
 
-# sha256 (first 16 hex digits) of the float64 samples before the cap, 0.1 s at 22050 Hz
+# Ordinary plucks, which the cap must leave alone. (Before the cap their samples hashed the same
+# as now on the machine that made it; hashes of float64 output depend on the CPU's fused
+# multiply-adds and the LAPACK build, so the test compares with the cap lifted instead.)
 UNCHANGED = [
-    ("allpass", {"excitation": "pluck"}, "6020641f5412d5ac"),
-    ("allpass", {"excitation": "pluck", "bc": "clamped-free", "strike_position": 0.5, "pickup_position": 0.37},
-     "f2852138bcd8a139"),
-    ("allpass", {"excitation": "pluck", "strike_position": 0.3, "pickup_position": 0.62}, "e7bb02b23a289ab0"),
-    ("fd", {"excitation": "pluck", "points": 40}, "ba9e471ee3cb819b"),
-    ("fd", {"excitation": "pluck", "bc": "clamped-clamped", "strike_position": 0.5, "points": 40}, "694c5e1c6c4cb47e"),
-    ("fd", {"excitation": "pluck", "bc": "clamped-free", "strike_position": 0.3, "points": 40}, "e19c3ae97a1c333d"),
+    ("allpass", {"excitation": "pluck"}),
+    ("allpass", {"excitation": "pluck", "bc": "clamped-free", "strike_position": 0.5, "pickup_position": 0.37}),
+    ("allpass", {"excitation": "pluck", "strike_position": 0.3, "pickup_position": 0.62}),
+    ("fd", {"excitation": "pluck", "points": 40}),
+    ("fd", {"excitation": "pluck", "bc": "clamped-clamped", "strike_position": 0.5, "points": 40}),
+    ("fd", {"excitation": "pluck", "bc": "clamped-free", "strike_position": 0.3, "points": 40}),
     ("fd", {"excitation": "pluck", "bc": "clamped-free", "strike_position": 1.0, "pickup_position": 1.0,
-            "points": 60}, "0595f84d109072f5"),
-    ("banded", {"excitation": "pluck"}, "81b1cd29453c1a82"),
-    ("banded", {"excitation": "pluck", "tuning": "ratios", "shape": "ring", "strike_position": 0.3},
-     "ea45c4cfce241e1d"),
+            "points": 60}),
+    ("banded", {"excitation": "pluck"}),
+    ("banded", {"excitation": "pluck", "tuning": "ratios", "shape": "ring", "strike_position": 0.3}),
 ]
 
 
-@pytest.mark.parametrize("name,parameters,digest", UNCHANGED, ids=[f"{n}-{i}" for i, (n, _, _) in enumerate(UNCHANGED)])
-def test_ordinary_plucks_sound_as_before(name, parameters, digest):
-    x = _raw(name, parameters)
-    assert hashlib.sha256(x.tobytes()).hexdigest()[:16] == digest
+@pytest.mark.parametrize("name,parameters", UNCHANGED, ids=[f"{n}-{i}" for i, (n, _) in enumerate(UNCHANGED)])
+def test_ordinary_plucks_sound_as_without_the_cap(name, parameters, monkeypatch):
+    import barsynth.models.fd as fd_module
+    import barsynth.models.shared as shared_module
+
+    capped = _raw(name, parameters)
+    monkeypatch.setattr(shared_module, "PLUCK_REACH", math.inf)
+    monkeypatch.setattr(fd_module, "PLUCK_REACH", math.inf)
+    free = _raw(name, parameters)
+    assert np.max(np.abs(free)) > 0 and capped.tobytes() == free.tobytes()
+
+
+def test_the_cap_acts_near_a_clamp(monkeypatch):
+    """The comparison above can fail: near a clamp the capped pluck differs from the free one."""
+    import barsynth.models.fd as fd_module
+    import barsynth.models.shared as shared_module
+
+    near = {"excitation": "pluck", "bc": "clamped-free", "strike_position": 0.05, "pickup_position": 0.9}
+    for name, extra in (("fd", {"points": 40}), ("allpass", {})):
+        capped = _raw(name, {**near, **extra})
+        with monkeypatch.context() as patch:
+            patch.setattr(shared_module, "PLUCK_REACH", math.inf)
+            patch.setattr(fd_module, "PLUCK_REACH", math.inf)
+            free = _raw(name, {**near, **extra})
+        assert np.max(np.abs(capped)) < 0.5 * np.max(np.abs(free)), name
 
 
 @pytest.mark.parametrize("name,bc", [("fd", "clamped-free"), ("fd", "pinned-pinned"), ("allpass", "clamped-clamped"),

@@ -37,7 +37,7 @@ import numpy as np
 from .errors import ParameterError
 
 __all__ = ["check_array", "check_choice", "check_input_file", "check_number", "check_output_file",
-           "check_whole", "show_text", "show_value"]
+           "check_whole", "number_within", "show_text", "show_value"]
 
 _REAL_TYPES = (int, float, np.integer, np.floating)  # bool is an int: excluded separately
 _MAX_SHOWN = 80  # longest repr of a value quoted in a message
@@ -287,3 +287,19 @@ def check_choice(
         f"parameter {name} = {_show(value)} is not a known choice; "
         f"allowed: one of {', '.join(choices)}"
     )
+
+
+def number_within(value: object, low: float, high: float, *, whole: bool = False) -> bool:
+    """Whether ``value`` (as JSON decodes it) is a real number in ``[low, high]``: not a bool,
+    not NaN or infinite, and with ``whole`` a whole number. An integer of any size is compared
+    as an integer (``math.isfinite`` would overflow on one beyond float range).
+
+    >>> number_within(10 ** 400, 16, 4096, whole=True), number_within(3.0, 1, 5, whole=True)
+    (False, True)
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, _REAL_TYPES):
+        return False
+    if isinstance(value, (int, np.integer)):
+        return low <= value <= high
+    number = float(value)
+    return math.isfinite(number) and (not whole or number.is_integer()) and low <= number <= high

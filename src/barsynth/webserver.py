@@ -8,6 +8,8 @@ Limits on every connection (:func:`server_config`), whichever server:
   connection opened (or after the previous answer); otherwise the connection is closed.
 - ``BODY_TIMEOUT_S``: its body must be complete this long after its headers.
 - ``KEEP_ALIVE_S``: an idle connection between requests is closed after this long.
+- ``SEND_TIMEOUT_S``: a client that stops reading an answer (the server's send buffer full)
+  for this long is cut off, so slow readers cannot hold connections the cap counts as busy.
 - ``MAX_HEADER_BYTES``: a request line and headers larger than this get 431 and a close.
 - ``MAX_CONNECTIONS`` (lowered to the open-file limit less ``FD_RESERVE``): one more connection
   closes the one that has waited longest without a complete request (idle or incomplete),
@@ -44,6 +46,7 @@ from .errors import BarsynthError
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "[::1]")
 HEADER_TIMEOUT_S = 10.0
 BODY_TIMEOUT_S = 10.0
+SEND_TIMEOUT_S = 30.0
 KEEP_ALIVE_S = 5
 MAX_HEADER_BYTES = 16 * 1024
 MAX_CONNECTIONS = 1000
@@ -218,9 +221,9 @@ class RateLimitedLog(logging.Filter):
 
 
 def quiet_logs(every_s: float = LOG_EVERY_S) -> RateLimitedLog:
-    """Put one :class:`RateLimitedLog` on the loggers a flood of clients can fill (asyncio's and
-    uvicorn's error log); again is a no-op. Returns the filter."""
-    loggers = [logging.getLogger(name) for name in ("asyncio", "uvicorn.error")]
+    """Put one :class:`RateLimitedLog` on the loggers a flood of clients can fill (asyncio's,
+    uvicorn's error log and the studio's stream log); again is a no-op. Returns the filter."""
+    loggers = [logging.getLogger(name) for name in ("asyncio", "uvicorn.error", "barsynth.studio")]
     found = next((f for f in loggers[0].filters if isinstance(f, RateLimitedLog)), None)
     rate = found or RateLimitedLog(every_s)
     for logger in loggers:
@@ -235,13 +238,15 @@ def connection_cap(limit: int = MAX_CONNECTIONS) -> int:
     soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
     if soft == resource.RLIM_INFINITY:
         return limit
-    return max(8, min(limit, soft - FD_RESERVE))
+    return min(limit, max(8, soft - FD_RESERVE))  # (the floor of 8 is for the open-file limit only)
 
 
 def guarded_protocol(*, header_timeout_s: float = HEADER_TIMEOUT_S, body_timeout_s: float = BODY_TIMEOUT_S,
-                     max_connections: int | None = None, max_header_bytes: int = MAX_HEADER_BYTES) -> type:
-    """uvicorn's h11 HTTP protocol with a header timeout, a body timeout, a 431 for oversized
-    headers and a cap on connections that closes the longest-waiting idle or incomplete one.
+                     send_timeout_s: float = SEND_TIMEOUT_S, max_connections: int | None = None,
+                     max_header_bytes: int = MAX_HEADER_BYTES) -> type:
+    """uvicorn's h11 HTTP protocol with a header timeout, a body timeout, a send timeout (a
+    client that stops reading), a 431 for oversized headers and a cap on connections that
+    closes the longest-waiting idle or incomplete one.
 
     Written here because uvicorn has none of these: its h11 protocol arms no timer on a new
     connection (one that sends nothing, or a header a byte a minute, is kept for ever), its
@@ -279,6 +284,7 @@ def guarded_protocol(*, header_timeout_s: float = HEADER_TIMEOUT_S, body_timeout
 
         def connection_made(self, transport: Any) -> None:  # type: ignore[override]
             self._timer: Any = None
+            self._send_timer: Any = None
             self._waiting = ""
             self._since = 0.0
             super().connection_made(transport)
@@ -344,8 +350,29 @@ def guarded_protocol(*, header_timeout_s: float = HEADER_TIMEOUT_S, body_timeout
             self._stop_waiting()  # the WebSocket protocol takes the connection over
             super().handle_websocket_upgrade(event)
 
+        def pause_writing(self) -> None:  # the client reads slower than we send: it has a while
+            super().pause_writing()
+            if self._send_timer is None:
+                self._send_timer = self.loop.call_later(send_timeout_s, self._cut_off)
+
+        def resume_writing(self) -> None:
+            self._stop_send_timer()
+            super().resume_writing()
+
+        def _stop_send_timer(self) -> None:
+            if self._send_timer is not None:
+                self._send_timer.cancel()
+                self._send_timer = None
+
+        def _cut_off(self) -> None:
+            """A client that read nothing for ``send_timeout_s``: dropped, its unsent answer too."""
+            self._send_timer = None
+            self.connections.discard(self)
+            self.transport.abort()  # (close() would wait to send what is buffered, for ever)
+
         def connection_lost(self, exc: Exception | None) -> None:
             self._stop_waiting()
+            self._stop_send_timer()
             super().connection_lost(exc)
 
     return GuardedH11Protocol

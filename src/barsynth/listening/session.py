@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import random
 import secrets
 from typing import Any
 
-from ..checks import show_value
+from ..checks import number_within, show_value
 from ..webserver import Refused
 from .config import ListeningTest
 from .store import RATING_MAX, AnswerRefused, ResultsStore
@@ -160,7 +159,7 @@ class Session:
                 raise Refused(422, f"handle {show_value(handle)} is rated twice")
             seen.add(handle)
             rating = entry.get("rating")
-            if not _number_within(rating, 0.0, RATING_MAX):
+            if not number_within(rating, 0.0, RATING_MAX):
                 raise Refused(422, f"parameter rating = {_short(rating)} is out of range; allowed: 0 to "
                                    f"{RATING_MAX} (points)")
             comment = entry.get("comment", "")
@@ -191,15 +190,6 @@ class Session:
 def _first_open(done: list[bool]) -> int | None:
     """The first step not yet answered, or None."""
     return next((k for k, answered in enumerate(done) if not answered), None)
-
-
-def _number_within(value: Any, low: float, high: float) -> bool:
-    """A real JSON number (not a bool, not a huge integer, not NaN) within [low, high]."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return False
-    if isinstance(value, int) and not -2**53 <= value <= 2**53:
-        return False
-    return math.isfinite(value) and low <= value <= high
 
 
 def _short(value: Any) -> str:

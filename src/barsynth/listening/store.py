@@ -121,18 +121,25 @@ def check_results_file(path: str | Path) -> str:
         return "ours"
     if application_id != 0:
         raise _not_ours(path, f"an SQLite database of another application, id {application_id:#x}")
-    try:  # immutable: read the schema without locks, journals or a -shm file beside it
-        probe = sqlite3.connect(f"{path.resolve().as_uri()}?immutable=1", uri=True)
-        try:
-            tables = {row[0] for row in probe.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
-        finally:
-            probe.close()
-    except sqlite3.DatabaseError as exc:
-        raise _not_ours(path, f"an unreadable SQLite file: {exc}") from None
+    tables = _tables(path, "immutable=1")  # without locks, journals or a -shm file beside it
+    if not tables and Path(f"{path}-wal").is_file():  # an earlier barsynth killed before a checkpoint:
+        tables = _tables(path, "mode=ro")  # its tables are still in the write-ahead log
     if tables != _TABLES:
         found = ", ".join(sorted(tables)) or "none"
         raise _not_ours(path, f"an SQLite database with other tables: {show_text(found)}")
     return "legacy"
+
+
+def _tables(path: Path, mode: str) -> set[str]:
+    """The names of the tables in the SQLite file ``path``, opened read-only (``mode``: URI options)."""
+    try:
+        probe = sqlite3.connect(f"{path.resolve().as_uri()}?{mode}", uri=True)
+        try:
+            return {row[0] for row in probe.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        finally:
+            probe.close()
+    except sqlite3.DatabaseError as exc:
+        raise _not_ours(path, f"an unreadable SQLite file: {exc}") from None
 
 
 class ResultsStore:
@@ -144,8 +151,8 @@ class ResultsStore:
         self._lock = threading.RLock()
         self._depth = 0
         found = check_results_file(self.path)
+        self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
         try:
-            self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
             if found != "ours":  # new (before WAL, so the mark is in the file's header at once) or legacy
                 self._db.execute(f"PRAGMA application_id = {APPLICATION_ID}")
             self._db.execute("PRAGMA journal_mode=WAL")
@@ -153,7 +160,9 @@ class ResultsStore:
             self._db.execute("PRAGMA foreign_keys=ON")
             self._db.executescript(SCHEMA)
         except sqlite3.DatabaseError as exc:
-            raise BarsynthError(f"results file {self.path}: not a barsynth results database ({exc})") from None
+            self._db.close()
+            raise BarsynthError(f"results file {show_text(self.path)}: not a barsynth results database ({exc})") \
+                from None
 
     def close(self) -> None:
         with self._lock:

@@ -8,7 +8,6 @@ the page only draws what it is sent.
 from __future__ import annotations
 
 import base64
-import math
 from typing import Any
 
 import numpy as np

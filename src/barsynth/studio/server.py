@@ -42,7 +42,7 @@ from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..errors import BarsynthError, ModelError
-from ..checks import show_value
+from ..checks import number_within, show_value
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_json,
                          server_config, shown_address)
 from .live import MAX_MESSAGE_BYTES, play
@@ -114,8 +114,7 @@ def _duration(value: Any, default: float = 2.0) -> float:
 def _width(value: Any) -> int:
     if value is None:
         return 600
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or value != int(value) or not 16 <= value <= MAX_COLUMNS:
+    if not number_within(value, 16, MAX_COLUMNS, whole=True):
         raise Refused(422, f"parameter width = {show_value(value)} is out of range; allowed: whole numbers from 16 to "
                            f"{MAX_COLUMNS} pixels")
     return int(value)

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BarsynthError, SamplesError
-from ..checks import show_value
+from ..checks import number_within, show_value
 from ..models.crossfade import DEFAULT_FADE_S, CrossfadingVoice
 from ..models.rendering import check_samples
 
@@ -72,8 +72,7 @@ class StreamError(BarsynthError):
 
 
 def _whole(name: str, value: Any, low: int, high: int, unit: str = "") -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or value != int(value) or not low <= value <= high:
+    if not number_within(value, low, high, whole=True):
         raise StreamError(f"parameter {name} = {show_value(value)} is out of range; allowed: whole numbers from "
                           f"{low} to {high}{' ' + unit if unit else ''}")
     return int(value)

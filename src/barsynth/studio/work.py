@@ -128,7 +128,10 @@ class Workers:
         else:
             _kill(executor)
             if not self._closed:
-                self._idle.append(self._new_process())
+                try:
+                    self._idle.append(self._new_process())
+                except OSError:  # out of processes or files now: the next job starts one when it can
+                    pass
 
     def processes_running(self) -> list[int]:
         """The process ids of the workers (for tests and benchmarks)."""
@@ -169,8 +172,13 @@ class Workers:
         await self._turn(gone)
         assert self._turns is not None
         loop = asyncio.get_running_loop()
-        executor, healthy = self._take(), False
+        executor, healthy = None, False
         try:
+            try:
+                executor = self._take()
+            except OSError as exc:  # out of processes or file descriptors (a flood of clients)
+                raise Refused(503, f"the studio cannot start a worker now ({exc.strerror or exc}); "
+                                   "try again") from None
             job = loop.run_in_executor(executor, work, *args)
             job.add_done_callback(_retrieve)  # a stopped job's error is nobody's to log
             started = loop.time()
@@ -191,8 +199,11 @@ class Workers:
             healthy = not isinstance(sys.exc_info()[1], Refused)
             raise
         finally:
-            self._give_back(executor, healthy=healthy)
-            self._turns.release()
+            try:
+                if executor is not None:
+                    self._give_back(executor, healthy=healthy)
+            finally:
+                self._turns.release()  # whatever happened, the turn comes back
 
     def close(self) -> None:
         """Stop the workers now, renders under way included (the server is stopping)."""
