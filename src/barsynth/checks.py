@@ -37,7 +37,7 @@ import numpy as np
 from .errors import ParameterError
 
 __all__ = ["check_array", "check_choice", "check_input_file", "check_number", "check_output_file",
-           "check_whole", "number_within", "show_text", "show_value"]
+           "check_whole", "file_kind", "number_within", "show_text", "show_value"]
 
 _REAL_TYPES = (int, float, np.integer, np.floating)  # bool is an int: excluded separately
 _MAX_SHOWN = 80  # longest repr of a value quoted in a message
@@ -70,7 +70,8 @@ def show_text(text: object) -> str:
     return f"{flat[:half]}...{flat[-half:]}"
 
 
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
+    """What a file of ``os.stat`` mode ``mode`` is, for a message: 'a FIFO (named pipe)', 'a device', ..."""
     if stat.S_ISFIFO(mode):
         return "a FIFO (named pipe)"
     if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
@@ -93,7 +94,7 @@ def check_input_file(path: object, what: str) -> None:
     except OSError as exc:
         raise ParameterError(f"{what} {show_text(name)}: {exc.strerror or 'cannot be read'}") from None
     if not stat.S_ISREG(mode):
-        raise ParameterError(f"{what} {show_text(name)} is {_kind(mode)}; allowed: a regular file")
+        raise ParameterError(f"{what} {show_text(name)} is {file_kind(mode)}; allowed: a regular file")
 
 
 def check_output_file(path: object, what: str) -> None:
@@ -107,7 +108,7 @@ def check_output_file(path: object, what: str) -> None:
     except OSError as exc:
         raise ParameterError(f"{what} {show_text(name)}: {exc.strerror or 'cannot be checked'}") from None
     if not stat.S_ISREG(mode):
-        raise ParameterError(f"{what} {show_text(name)} is {_kind(mode)}; allowed: a regular file or a new name")
+        raise ParameterError(f"{what} {show_text(name)} is {file_kind(mode)}; allowed: a regular file or a new name")
 
 
 def _bound(value: float) -> str:

@@ -30,7 +30,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ..checks import show_text
+from ..checks import file_kind, show_text
 from ..errors import BarsynthError, ParameterError
 
 RATING_MAX = 9.99
@@ -105,8 +105,7 @@ def check_results_file(path: str | Path) -> str:
     except OSError as exc:
         raise BarsynthError(f"results file {show_text(path)}: {exc.strerror or exc}") from None
     if not stat.S_ISREG(mode):
-        kind = "a FIFO" if stat.S_ISFIFO(mode) else "a folder" if stat.S_ISDIR(mode) else "a device or socket"
-        raise _not_ours(path, f"it is {kind}, not a regular file")
+        raise _not_ours(path, f"it is {file_kind(mode)}, not a regular file")
     try:
         with open(path, "rb") as handle:
             header = handle.read(100)
