@@ -12,6 +12,7 @@ from barsynth import ParameterError
 from barsynth.errors import BarsynthError
 from barsynth.cli import main
 from barsynth.listening import paper_like_ratings
+from barsynth.listening.report import CSV_NAMES
 from barsynth.listening.store import AnswerRefused, ResultsStore
 
 
@@ -69,6 +70,7 @@ def test_report_reproduces_the_paper_from_its_means(tmp_path):
     assert "uncorrected" in r.stdout and "****" in r.stdout
     assert "farnell" in r.stdout and "90%" in r.stdout
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in out.iterdir()) == sorted(CSV_NAMES)  # the names the CLI checks first
     with open(out / "summary.csv") as handle:
         rows = {row["clip"]: row for row in csv.DictReader(handle)}
     assert float(rows["Proposed2"]["mean"]) == pytest.approx(6.02, abs=1e-9)

@@ -610,7 +610,7 @@ def listen_serve(config, results, host, port):
 @click.option("--holm", "holm_correction", is_flag=True, help="Holm-correct the pairwise p-values.")
 def listen_report(results, csv_dir, plot_path, holm_correction):
     """Per-clip statistics, pairwise rank-sum marks and A/B identification rates."""
-    from .listening.report import box_plot, csv_tables, report_text, write_table
+    from .listening.report import CSV_NAMES, box_plot, csv_tables, report_text, write_table
     from .listening.store import open_existing
 
     if plot_path is not None and plot_path.suffix.lower() != ".png":
@@ -620,7 +620,7 @@ def listen_report(results, csv_dir, plot_path, holm_correction):
     if csv_dir is not None:
         from .checks import check_output_file
 
-        for name in ("ratings.csv", "ab.csv", "summary.csv", "pairwise.csv"):
+        for name in CSV_NAMES:
             check_output_file(csv_dir / name, "parameter csv: file")
     with open_existing(results) as store:
         text = report_text(store, holm_correction=holm_correction)

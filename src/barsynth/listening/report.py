@@ -29,6 +29,9 @@ def report_text(store: ResultsStore, *, holm_correction: bool = False) -> str:
     return "\n".join(lines) + "\n"
 
 
+CSV_NAMES = ("ratings.csv", "ab.csv", "summary.csv", "pairwise.csv")  # the files csv_tables makes, in order
+
+
 def csv_tables(store: ResultsStore, *, holm_correction: bool = False) -> dict[str, tuple[list[str], list]]:
     """The CSV exports by file name: ratings.csv and ab.csv (raw answers), summary.csv
     and pairwise.csv (statistics), each as ``(header, rows)``."""
