@@ -55,6 +55,7 @@ MAX_STREAM_RATE = 96000
 MAX_ID = 2 ** 32 - 1
 GAIN_PROBE_S = 1.0  # the offline render that sets a new voice's gain
 MAX_LEAVING = 4  # voices fading out at once
+MAX_ERRORS_WAITING = 4  # samples errors kept for the page until it is next told (more are dropped)
 HEADER = struct.Struct("<II")
 
 MESSAGES = {  # type -> (required fields, optional fields)
@@ -294,7 +295,7 @@ class Stream:
         except SamplesError as exc:  # never send a blow-up: silence the voice and say why
             playing.voice.reset()
             playing.total_samples = 0
-            if len(self._errors) < MAX_LEAVING:
+            if len(self._errors) < MAX_ERRORS_WAITING:
                 self._errors.append(str(exc))
             x = np.zeros(n)
         magnitude = np.abs(x)
