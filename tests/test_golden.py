@@ -1,0 +1,37 @@
+"""Golden sounds: every preset of every model (and a few non-default settings) must keep
+the samples recorded in golden_sounds.json (see tests/golden.py)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from golden import GOLDEN_FILE, cpu_features, digest, fingerprint, render_case, sound_cases
+
+GOLDEN = json.loads(GOLDEN_FILE.read_text())
+SAME_CPU = GOLDEN["cpu_features"] == cpu_features()
+CASES = sound_cases()
+
+
+def test_every_case_has_a_golden_sound():
+    assert sorted(name for name, *_ in CASES) == sorted(GOLDEN["sounds"])
+
+
+@pytest.mark.parametrize("name, model, params, rate, change", CASES, ids=[c[0] for c in CASES])
+def test_golden_sound(name, model, params, rate, change):
+    samples = render_case(model, params, rate, change)
+    golden = GOLDEN["sounds"][name]
+    assert np.isfinite(samples).all() and np.abs(samples).max() > 0
+    if SAME_CPU:
+        assert digest(samples) == golden["sha256"], f"{name}: the samples changed"
+    else:  # another CPU family: NumPy's vector maths may differ in the last bit
+        np.testing.assert_allclose(fingerprint(samples, rate), golden["rms"], rtol=1e-9, atol=1e-300)
+
+
+def test_a_changed_sample_changes_the_hash():
+    name, model, params, rate, change = CASES[0]
+    samples = render_case(model, params, rate, change)
+    samples[samples.size // 2] = np.nextafter(samples[samples.size // 2], np.inf)
+    assert digest(samples) != GOLDEN["sounds"][name]["sha256"]
