@@ -78,7 +78,7 @@ def test_json_and_markdown_come_from_the_same_rows():
     assert [r["name"] for r in rows] == list(TABLE.names)
     assert rows[0] == {"name": "rate_hz", "unit": "Hz", "min": 0.1, "max": 1000.0, "default": 10.0,
                        "doc": "a log-scaled rate", "scale": "log", "kind": "float", "choices": None,
-                       "max_items": None}
+                       "max_items": None, "when": None}
     md = TABLE.to_markdown()
     assert md.count("\n") == len(TABLE) + 2
     assert "| `mode` | - | a / b | a |" in md
@@ -138,3 +138,33 @@ def test_every_shipped_preset_resolves_and_sounds(model_name, preset):
     x = model.render(preset_module.preset_parameters(model_name, preset), duration_s=0.2, sample_rate=44100,
                      normalize=False, dtype=np.float64)
     assert np.all(np.isfinite(x)) and np.max(np.abs(x)) > 0.0
+
+
+def test_when_says_under_which_settings_a_parameter_acts():
+    table = ParameterTable("x", [
+        Parameter("excitation", "", None, None, "strike", "", kind=CHOICE, choices=("strike", "bow")),
+        Parameter("bow_force_n", "N", 0.0, 10.0, 1.0, "bow force", when={"excitation": ("bow",)}),
+    ])
+    assert table.inactive(table.resolve()) == [("bow_force_n", "excitation = bow")]
+    assert table.inactive(table.resolve({"excitation": "bow"})) == []
+    assert table["bow_force_n"].to_json()["when"] == {"excitation": ["bow"]}
+    with pytest.raises(ValueError, match="not a value it takes"):
+        ParameterTable("y", [Parameter("a", "", 0.0, 1.0, 0.5, "", when={"excitation": ("bow",)})])
+
+
+def test_a_material_sets_youngs_modulus_and_density():
+    from barsynth.models.shared import material_parameter
+    from barsynth.physics import material
+
+    table = ParameterTable("x", [Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 1e9, "E", scale="log"),
+                                 Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 1000.0, "rho"),
+                                 material_parameter()])
+    steel = material("steel")
+    p = table.resolve({"material": "steel"})
+    assert (p.youngs_modulus_pa, p.density_kg_m3, p.material) == (steel.youngs_modulus_pa, steel.density_kg_m3, "steel")
+    later = table.resolve({"material": "steel"}, {"density_kg_m3": 3000})  # a --set on top of a preset
+    assert (later.youngs_modulus_pa, later.density_kg_m3, later.material) == (steel.youngs_modulus_pa, 3000.0, "custom")
+    with pytest.raises(ParameterError, match="either material or density_kg_m3"):
+        table.resolve({"material": "steel", "density_kg_m3": 3000})
+    with pytest.raises(ParameterError, match="material"):
+        table.resolve({"material": "unobtainium"})

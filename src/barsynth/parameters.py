@@ -25,6 +25,18 @@ BOOL = "bool"
 CHOICE = "choice"
 FLOATS = "floats"  # a list of numbers, each within [minimum, maximum]
 
+@dataclass(frozen=True)
+class Sets:
+    """What choosing a value of a choice parameter sets: the parameters ``names``, to the values
+    ``lookup(choice)`` gives in that order (nothing for the parameter's default)."""
+
+    names: tuple[str, ...]
+    lookup: Any  # Callable[[str], tuple[Any, ...]]
+
+    def values(self, choice: str, default: str) -> dict[str, Any]:
+        return {} if choice == default else dict(zip(self.names, self.lookup(choice)))
+
+
 _TRUE_WORDS = {"1", "true", "yes", "on"}
 _FALSE_WORDS = {"0", "false", "no", "off"}
 
@@ -39,6 +51,11 @@ class Parameter:
     ``minimum`` and ``maximum`` as ``None``; a floats parameter is a tuple of at
     most ``max_items`` numbers, each within ``[minimum, maximum]`` (written
     ``1,4,10`` on the command line, a list in TOML or JSON).
+
+    ``when`` (``{"excitation": ("bow",)}``) says under which settings the parameter acts
+    at all: elsewhere it has no effect (the CLI warns, the studio greys it out).
+    ``sets``, for a choice, maps a chosen value to the other parameters it sets (a
+    ``material`` sets Young's modulus and density); see :meth:`ParameterTable.resolve`.
     """
 
     name: str
@@ -51,8 +68,14 @@ class Parameter:
     kind: str = FLOAT
     choices: tuple[str, ...] = ()
     max_items: int = 0
+    when: Any = ()
+    sets: Any = None
 
     def __post_init__(self) -> None:
+        # ``when``: the parameter acts only when each named parameter holds one of the listed
+        # values (``{"tuning": ("ratios",)}``); kept as sorted pairs so the record stays hashable.
+        when = self.when.items() if isinstance(self.when, Mapping) else self.when
+        object.__setattr__(self, "when", tuple(sorted((name, tuple(values)) for name, values in when)))
         if self.kind not in (FLOAT, INT, BOOL, CHOICE, FLOATS):
             raise ValueError(f"{self.name}: unknown kind {self.kind!r}")
         if self.scale not in ("linear", "log"):
@@ -104,7 +127,16 @@ class Parameter:
             "kind": self.kind,
             "choices": list(self.choices) if self.kind == CHOICE else None,
             "max_items": self.max_items if self.kind == FLOATS else None,
+            "when": {name: list(values) for name, values in self.when} or None,
         }
+
+    def acts_under(self, resolved: Any) -> bool:
+        """Whether this parameter has any effect with the other parameters at ``resolved``."""
+        return all(getattr(resolved, name) in values for name, values in self.when)
+
+    def when_text(self) -> str:
+        """``excitation = bow``: the settings under which the parameter acts, in words."""
+        return " and ".join(f"{name} = {' or '.join(str(v) for v in values)}" for name, values in self.when)
 
     # -- validating -----------------------------------------------------------------
     def validate(self, value: Any) -> Any:
@@ -238,6 +270,11 @@ class ParameterTable:
         )
         self.dataclass.__doc__ = f"Resolved parameters of the {model} model (see its table)."
         self.dataclass._table = self  # a class attribute, not a field: lets an error message name the model
+        for p in self.parameters:
+            for name, values in p.when:
+                if name not in self._by_name or not all(
+                        v in (self._by_name[name].choices or (True, False)) for v in values):
+                    raise ValueError(f"{model}: {p.name} acts when {name} is {values}, not a value it takes")
 
     def __iter__(self):
         return iter(self.parameters)
@@ -269,12 +306,38 @@ class ParameterTable:
         return {name: self[name].validate(value) for name, value in values.items()}
 
     def resolve(self, *layers: Mapping[str, Any] | None) -> Any:
-        """Defaults, overridden by each mapping in turn, validated, as the frozen dataclass."""
+        """Defaults, overridden by each mapping in turn, validated, as the frozen dataclass.
+
+        A choice with ``sets`` (a ``material``) sets its parameters when chosen; giving one of
+        them in the same mapping is refused, and giving one in a later mapping (a ``--set``
+        on top of a preset) turns the choice back to its default (``custom``).
+        """
         merged = self.defaults()
         for layer in layers:
-            if layer:
-                merged.update(self.validate(layer))
+            if not layer:
+                continue
+            values = self.validate(layer)
+            for p in self.parameters:
+                if p.sets is None:
+                    continue
+                implied = p.sets.values(values[p.name], p.default) if p.name in values else {}
+                clash = sorted(set(implied) & set(values))
+                if clash:
+                    raise ParameterError(
+                        f"parameter {p.name} = {values[p.name]} sets {' and '.join(clash)}; allowed: "
+                        f"either {p.name} or {' and '.join(clash)}, not both")
+                if p.name not in values and set(p.sets.names) & set(values):
+                    values[p.name] = p.default  # one of its parameters given by hand
+                values.update(implied)
+            merged.update(values)
         return self.dataclass(**merged)
+
+    def inactive(self, resolved: Any, names: Iterable[str] | None = None) -> list[tuple[str, str]]:
+        """``(name, when)`` for each parameter (of ``names``, by default all) that has no effect
+        under ``resolved``: e.g. ``("bow_force_n", "excitation = bow")``."""
+        chosen = self.names if names is None else names
+        return [(name, self[name].when_text()) for name in chosen
+                if not self[name].acts_under(resolved)]
 
     def as_dict(self, resolved: Any) -> dict[str, Any]:
         """The resolved dataclass as a plain ordered dict."""

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..dsp.bow_stroke import FORCE, LIFT_DELAY_S, VELOCITY, BowControls
-from ..parameters import Parameter
+from ..parameters import CHOICE, Parameter, Sets
 from .base import resolve_parameters
 from .rendering import check_seed, render_voice
 
@@ -193,3 +193,19 @@ class BarModel:
         """One strike, bow stroke or pluck, offline (peak at -1 dBFS unless ``normalize`` is false)."""
         return render_voice(self.voice(parameters, sample_rate=sample_rate, seed=seed), duration_s,
                             normalize=normalize, dtype=dtype)
+
+
+def material_parameter() -> Parameter:
+    """``material``: a name from the materials table that sets ``youngs_modulus_pa`` and
+    ``density_kg_m3`` (``custom``: those two as given)."""
+    from ..physics.materials import material, materials
+
+    def lookup(name: str) -> tuple[float, float]:
+        m = material(name)
+        return m.youngs_modulus_pa, m.density_kg_m3
+
+    return Parameter("material", "", None, None, "custom",
+                     "a material from the materials table (barsynth materials): sets youngs_modulus_pa and "
+                     "density_kg_m3; custom keeps those as given",
+                     kind=CHOICE, choices=("custom", *materials()),
+                     sets=Sets(("youngs_modulus_pa", "density_kg_m3"), lookup))
