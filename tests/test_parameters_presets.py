@@ -78,7 +78,7 @@ def test_json_and_markdown_come_from_the_same_rows():
     assert [r["name"] for r in rows] == list(TABLE.names)
     assert rows[0] == {"name": "rate_hz", "unit": "Hz", "min": 0.1, "max": 1000.0, "default": 10.0,
                        "doc": "a log-scaled rate", "scale": "log", "kind": "float", "choices": None,
-                       "max_items": None, "when": None}
+                       "max_items": None, "when": None, "sets": None}
     md = TABLE.to_markdown()
     assert md.count("\n") == len(TABLE) + 2
     assert "| `mode` | - | a / b | a |" in md
@@ -164,6 +164,7 @@ def test_a_material_sets_youngs_modulus_and_density():
     assert (p.youngs_modulus_pa, p.density_kg_m3, p.material) == (steel.youngs_modulus_pa, steel.density_kg_m3, "steel")
     later = table.resolve({"material": "steel"}, {"density_kg_m3": 3000})  # a --set on top of a preset
     assert (later.youngs_modulus_pa, later.density_kg_m3, later.material) == (steel.youngs_modulus_pa, 3000.0, "custom")
+    assert table.resolve(table.as_dict(p)) == p  # its resolved values round-trip (a saved preset)
     with pytest.raises(ParameterError, match="either material or density_kg_m3"):
         table.resolve({"material": "steel", "density_kg_m3": 3000})
     with pytest.raises(ParameterError, match="material"):

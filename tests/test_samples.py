@@ -78,7 +78,7 @@ def test_bad_samples_name_the_model_the_settings_and_when(bad, kind):
 
 def test_long_values_and_many_settings_are_shortened():
     model = get_model("fd")
-    changed = {p.name: p.from_unit_interval(0.37) for p in model.table if p.kind != "floats"}
+    changed = model.table.settings_at({p.name: 0.37 for p in model.table if p.kind != "floats"})
     parameters = model.table.resolve(changed)
     with pytest.raises(SamplesError) as caught:
         check_samples(np.array([np.nan]), parameters, RATE)

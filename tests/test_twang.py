@@ -369,8 +369,8 @@ def test_vibrato_turned_off_mid_note_returns_to_pitch():
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.fixed_dictionaries({p.name: _strategy(p) for p in TWANG_TABLE}),
-       st.fixed_dictionaries({p.name: _strategy(p) for p in TWANG_TABLE}),
+@given(st.fixed_dictionaries({p.name: _strategy(p) for p in TWANG_TABLE if p.sets is None}),
+       st.fixed_dictionaries({p.name: _strategy(p) for p in TWANG_TABLE if p.sets is None}),
        st.sampled_from([8000.0, 48000.0, 192000.0]))
 def test_random_changes_mid_note_stay_finite_and_bounded(first, second, rate):
     """Any jump across the ranges while sounding: finite, and within the level times the
@@ -404,7 +404,7 @@ def test_change_is_heard_within_50_ms():
 
 # -- robustness --------------------------------------------------------------------------
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.fixed_dictionaries({p.name: _strategy(p) for p in TWANG_TABLE}),
+@given(st.fixed_dictionaries({p.name: _strategy(p) for p in TWANG_TABLE if p.sets is None}),
        st.sampled_from([8000.0, 44100.0, 96000.0]))
 def test_random_parameters_give_finite_bounded_output(values, rate):
     if not any(m.frequency_hz >= 20.0 for m in MODEL.describe(values, sample_rate=rate)):

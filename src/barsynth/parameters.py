@@ -128,6 +128,7 @@ class Parameter:
             "choices": list(self.choices) if self.kind == CHOICE else None,
             "max_items": self.max_items if self.kind == FLOATS else None,
             "when": {name: list(values) for name, values in self.when} or None,
+            "sets": list(self.sets.names) if self.sets is not None else None,
         }
 
     def acts_under(self, resolved: Any) -> bool:
@@ -136,7 +137,7 @@ class Parameter:
 
     def when_text(self) -> str:
         """``excitation = bow``: the settings under which the parameter acts, in words."""
-        return " and ".join(f"{name} = {' or '.join(str(v) for v in values)}" for name, values in self.when)
+        return " and ".join(f"{name} = {' or '.join(_word(v) for v in values)}" for name, values in self.when)
 
     # -- validating -----------------------------------------------------------------
     def validate(self, value: Any) -> Any:
@@ -309,8 +310,8 @@ class ParameterTable:
         """Defaults, overridden by each mapping in turn, validated, as the frozen dataclass.
 
         A choice with ``sets`` (a ``material``) sets its parameters when chosen; giving one of
-        them in the same mapping is refused, and giving one in a later mapping (a ``--set``
-        on top of a preset) turns the choice back to its default (``custom``).
+        them other values in the same mapping is refused, and giving one in a later mapping (a
+        ``--set`` on top of a preset) turns the choice back to its default (``custom``).
         """
         merged = self.defaults()
         for layer in layers:
@@ -321,7 +322,7 @@ class ParameterTable:
                 if p.sets is None:
                     continue
                 implied = p.sets.values(values[p.name], p.default) if p.name in values else {}
-                clash = sorted(set(implied) & set(values))
+                clash = sorted(name for name in set(implied) & set(values) if values[name] != implied[name])
                 if clash:
                     raise ParameterError(
                         f"parameter {p.name} = {values[p.name]} sets {' and '.join(clash)}; allowed: "
@@ -331,6 +332,17 @@ class ParameterTable:
                 values.update(implied)
             merged.update(values)
         return self.dataclass(**merged)
+
+    def settings_at(self, units: Mapping[str, float]) -> dict[str, Any]:
+        """The settings at a point of the unit cube (``{name: u}``, u in [0, 1], each along its
+        parameter's scale): for sliders and random draws. A parameter that a chosen ``sets``
+        value (a material) already sets is left out."""
+        values = {name: self[name].from_unit_interval(u) for name, u in units.items()}
+        for p in self.parameters:
+            if p.sets is not None and values.get(p.name, p.default) != p.default:
+                for name in p.sets.names:
+                    values.pop(name, None)
+        return values
 
     def inactive(self, resolved: Any, names: Iterable[str] | None = None) -> list[tuple[str, str]]:
         """``(name, when)`` for each parameter (of ``names``, by default all) that has no effect
@@ -366,7 +378,8 @@ class ParameterTable:
             else:
                 default = str(p.default).lower() if p.kind == BOOL else (
                     _fmt(p.default) if isinstance(p.default, float) else str(p.default))
-            lines.append(f"| `{p.name}` | {p.unit or '-'} | {span} | {default} | {p.scale} | {p.doc} |")
+            acts = f" (acts only when {p.when_text()})" if p.when else ""
+            lines.append(f"| `{p.name}` | {p.unit or '-'} | {span} | {default} | {p.scale} | {p.doc}{acts} |")
         return "\n".join(lines) + "\n"
 
 
@@ -380,3 +393,8 @@ def parse_assignments(items: Iterable[str]) -> dict[str, str]:
             raise ParameterError(f"--set {show_value(item)} must have the form NAME=VALUE")
         out[name] = value.strip()
     return out
+
+
+def _word(value: Any) -> str:
+    """A value as written on the command line (``true``, not ``True``)."""
+    return str(value).lower() if isinstance(value, bool) else str(value)

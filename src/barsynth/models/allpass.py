@@ -65,7 +65,7 @@ from ..errors import ParameterError
 from ..parameters import CHOICE, INT, Parameter, ParameterTable
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate, check_seed, render_voice
-from .shared import (PLUCK_DOC, POSITIONS_ALONG, add_force, bar_size_parameters, largest_deflection, level_parameter,
+from .shared import (PLUCKED, STRUCK_OR_PLUCKED, PLUCK_DOC, POSITIONS_ALONG, add_force, bar_size_parameters, largest_deflection, level_parameter,
                      mallet_force, mallet_parameters, pluck_force)
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "clamped-clamped", "pinned-pinned", "clamped-pinned")
@@ -96,11 +96,13 @@ ALLPASS_TABLE = ParameterTable(
         Parameter("excitation", "", None, None, "strike",
                   "what a trigger does: strike (a mallet) or pluck (a release)",
                   kind=CHOICE, choices=("strike", "pluck")),
-        Parameter("strike_position", "", 0.0, 1.0, 0.1, "where it is struck or plucked: fraction of the length"),
+        Parameter("strike_position", "", 0.0, 1.0, 0.1, "where it is struck or plucked: fraction of the length",
+                  when=STRUCK_OR_PLUCKED),
         Parameter("pickup_position", "", 0.0, 1.0, 0.0, "where its velocity is picked up: fraction of the length"),
         *mallet_parameters(),
-        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log"),
-        Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log"),
+        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log", when=PLUCKED),
+        Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log",
+                  when=PLUCKED),
         level_parameter(),
     ],
 )

@@ -35,13 +35,16 @@ from ..errors import ParameterError
 from ..parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate
-from .shared import (PLUCK_DOC, POSITIONS_ALONG, BarModel, BowedBarVoice, add_force, bar_size_parameters,
+from .shared import (PLUCKED, STRUCK_OR_PLUCKED, PLUCK_DOC, POSITIONS_ALONG, BarModel, BowedBarVoice, add_force, bar_size_parameters,
                      bow_parameters, largest_deflection, level_parameter, mallet_force, mallet_parameters,
                      pluck_force)
 
 MAX_MODES = 24
 MIN_Q = 3.0  # below this a mode is not a ringing loop (see dsp.banded)
 LOWEST_HZ = 20.0
+
+PHYSICS = {"tuning": ("physics",)}
+RATIOS = {"tuning": ("ratios",)}
 
 BANDED_TABLE = ParameterTable(
     "banded",
@@ -50,29 +53,34 @@ BANDED_TABLE = ParameterTable(
                   "where the modes come from: physics (a uniform free-free bar of the material and size "
                   "below) or ratios (frequency_hz x mode_ratios, with mode_t60s_s)",
                   kind=CHOICE, choices=("physics", "ratios")),
-        *bar_size_parameters("tuning = physics: "),
-        Parameter("mode_count", "", 1, MAX_MODES, 4, "tuning = physics: how many modes", kind=INT),
-        Parameter("frequency_hz", "Hz", 20.0, 5000.0, 220.0, "tuning = ratios: the fundamental", scale="log"),
+        *bar_size_parameters("tuning = physics: ", PHYSICS),
+        Parameter("mode_count", "", 1, MAX_MODES, 4, "tuning = physics: how many modes", kind=INT, when=PHYSICS),
+        Parameter("frequency_hz", "Hz", 20.0, 5000.0, 220.0, "tuning = ratios: the fundamental", scale="log",
+                  when=RATIOS),
         Parameter("mode_ratios", "", 0.25, 200.0, (1.0, 4.0, 10.0),
-                  "tuning = ratios: each mode's frequency / frequency_hz", kind=FLOATS, max_items=MAX_MODES),
+                  "tuning = ratios: each mode's frequency / frequency_hz", kind=FLOATS, max_items=MAX_MODES,
+                  when=RATIOS),
         Parameter("mode_t60s_s", "s", 0.005, 120.0, (),
                   "T60 of the first modes, in order (the rest follow q)", kind=FLOATS, max_items=MAX_MODES),
         Parameter("q", "", MIN_Q, 10000.0, 300.0,
                   "quality factor of every mode without its own T60: T60 = Q ln(1000) / (pi f)", scale="log"),
         Parameter("shape", "", None, None, "bar",
                   "tuning = ratios: mode shapes for positions: bar (free-free bending modes) or ring "
-                  "(cos(n 2 pi x), n = 2, 3, ... around a glass or bowl)", kind=CHOICE, choices=("bar", "ring")),
-        Parameter("mass_kg", "kg", 0.001, 100.0, 0.3, "tuning = ratios: the object's mass", scale="log"),
+                  "(cos(n 2 pi x), n = 2, 3, ... around a glass or bowl)", kind=CHOICE, choices=("bar", "ring"),
+                  when=RATIOS),
+        Parameter("mass_kg", "kg", 0.001, 100.0, 0.3, "tuning = ratios: the object's mass", scale="log", when=RATIOS),
         Parameter("excitation", "", None, None, "strike",
                   "what a trigger does: strike (a mallet), bow (a bow stroke) or pluck (a release)",
                   kind=CHOICE, choices=("strike", "bow", "pluck")),
         Parameter("strike_position", "", 0.0, 1.0, 0.1,
-                  "where it is struck or plucked: fraction of the length (bar) or of the circumference (ring)"),
+                  "where it is struck or plucked: fraction of the length (bar) or of the circumference (ring)",
+                  when=STRUCK_OR_PLUCKED),
         Parameter("pickup_position", "", 0.0, 1.0, 0.0,
                   "where its velocity is picked up, as strike_position"),
         *mallet_parameters(),
-        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log"),
-        Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log"),
+        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log", when=PLUCKED),
+        Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes", scale="log",
+                  when=PLUCKED),
         *bow_parameters(),
         level_parameter(),
     ],

@@ -41,10 +41,12 @@ from ..physics.boundary import BOUNDARY_CONDITIONS
 from ..physics.profiles import PROFILE_KINDS, THINNEST, Profile
 from .base import Mode, resolve_parameters
 from .rendering import check_block_size, check_dtype, check_sample_rate
-from .shared import (PLUCK_DOC, PLUCK_REACH, BarModel, BowedBarVoice, bar_size_parameters, bow_parameters,
+from .shared import (BOWED, PLUCKED, STRUCK_OR_PLUCKED, PLUCK_DOC, PLUCK_REACH, BarModel, BowedBarVoice, bar_size_parameters, bow_parameters,
                      level_parameter, mallet_parameters, mallet_stiffness)
 
 MAX_DESCRIBED = 24
+
+UNDERCUT = {"profile": ("parabolic", "circular")}
 
 FD_TABLE = ParameterTable(
     "fd",
@@ -56,12 +58,14 @@ FD_TABLE = ParameterTable(
                   "thickness along the bar: uniform, parabolic or circular (an undercut at the middle), or "
                   "samples (profile_samples)", kind=CHOICE, choices=PROFILE_KINDS),
         Parameter("undercut_depth", "", 0.0, 1.0 - THINNEST, 0.0,
-                  "profile = parabolic or circular: depth of the undercut at the middle, fraction of the thickness"),
+                  "profile = parabolic or circular: depth of the undercut at the middle, fraction of the thickness",
+                  when=UNDERCUT),
         Parameter("undercut_width", "", 0.05, 1.0, 0.6,
-                  "profile = parabolic or circular: length of the undercut, fraction of the bar's length"),
+                  "profile = parabolic or circular: length of the undercut, fraction of the bar's length",
+                  when=UNDERCUT),
         Parameter("profile_samples", "", THINNEST, 1.0, (),
                   "profile = samples: thickness / thickness_m at equally spaced points from end to end",
-                  kind=FLOATS, max_items=64),
+                  kind=FLOATS, max_items=64, when={"profile": ("samples",)}),
         Parameter("points", "", 8, 400, 100, "grid nodes along the bar: more are more accurate and slower",
                   kind=INT),
         Parameter("theta", "", 0.0, 1.0, 0.5,
@@ -81,11 +85,12 @@ FD_TABLE = ParameterTable(
                   kind=CHOICE, choices=("strike", "bow", "pluck")),
         Parameter("bow_solver", "", None, None, "newton",
                   "the bow's friction: newton (solved with each step: stick and slip) or explicit (from the "
-                  "step before: a forced oscillation)", kind=CHOICE, choices=("newton", "explicit")),
-        Parameter("strike_position", "", 0.0, 1.0, 0.7, "where it is struck or plucked: fraction of the length"),
+                  "step before: a forced oscillation)", kind=CHOICE, choices=("newton", "explicit"), when=BOWED),
+        Parameter("strike_position", "", 0.0, 1.0, 0.7, "where it is struck or plucked: fraction of the length",
+                  when=STRUCK_OR_PLUCKED),
         Parameter("pickup_position", "", 0.0, 1.0, 0.97, "where its velocity is picked up: fraction of the length"),
         *mallet_parameters(),
-        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log"),
+        Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log", when=PLUCKED),
         *bow_parameters(position=1.0),
         level_parameter(),
     ],

@@ -23,23 +23,33 @@ HARDEST_CONTACT_S = 0.0002  # mallet_hardness 1: a hard plastic mallet at 1 m/s
 BOW_GLIDE_S = 0.020  # a new bow speed or force is reached over this time
 
 
-def bar_size_parameters(note: str = "") -> list[Parameter]:
-    """Material and size of a rectangular bar; ``note`` prefixes each doc (e.g. when it applies)."""
+def bar_size_parameters(note: str = "", when: Any = ()) -> list[Parameter]:
+    """Material and size of a rectangular bar; ``note`` prefixes each doc (e.g. when it applies)
+    and ``when`` says when they act (see :class:`~barsynth.parameters.Parameter`)."""
     return [
-        Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 69e9, f"{note}Young's modulus E", scale="log"),
-        Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 2700.0, f"{note}density rho", scale="log"),
-        Parameter("length_m", "m", 0.02, 3.0, 0.30, f"{note}length of the bar", scale="log"),
-        Parameter("thickness_m", "m", 0.0003, 0.1, 0.01, f"{note}thickness h (bending direction)", scale="log"),
-        Parameter("width_m", "m", 0.002, 0.5, 0.04, f"{note}width (sets the mass)", scale="log"),
+        Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 69e9, f"{note}Young's modulus E", scale="log", when=when),
+        Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 2700.0, f"{note}density rho", scale="log", when=when),
+        material_parameter(note, when),
+        Parameter("length_m", "m", 0.02, 3.0, 0.30, f"{note}length of the bar", scale="log", when=when),
+        Parameter("thickness_m", "m", 0.0003, 0.1, 0.01, f"{note}thickness h (bending direction)", scale="log",
+                  when=when),
+        Parameter("width_m", "m", 0.002, 0.5, 0.04, f"{note}width (sets the mass)", scale="log", when=when),
     ]
+
+
+STRUCK = {"excitation": ("strike",)}
+PLUCKED = {"excitation": ("pluck",)}
+BOWED = {"excitation": ("bow",)}
+STRUCK_OR_PLUCKED = {"excitation": ("strike", "pluck")}
 
 
 def mallet_parameters() -> list[Parameter]:
     return [
         Parameter("mallet_hardness", "", 0.0, 1.0, 0.7,
-                  "0 soft (10 ms contact at 1 m/s) to 1 hard (0.2 ms): harder = more high modes"),
-        Parameter("mallet_velocity_m_s", "m/s", 0.05, 10.0, 1.0, "how fast the mallet arrives", scale="log"),
-        Parameter("mallet_mass_kg", "kg", 0.002, 0.5, 0.03, "mass of the mallet head", scale="log"),
+                  "0 soft (10 ms contact at 1 m/s) to 1 hard (0.2 ms): harder = more high modes", when=STRUCK),
+        Parameter("mallet_velocity_m_s", "m/s", 0.05, 10.0, 1.0, "how fast the mallet arrives", scale="log",
+                  when=STRUCK),
+        Parameter("mallet_mass_kg", "kg", 0.002, 0.5, 0.03, "mass of the mallet head", scale="log", when=STRUCK),
     ]
 
 
@@ -118,17 +128,18 @@ def add_force(pending: np.ndarray, held: float, change: np.ndarray, change_held:
 
 def bow_parameters(*, position: float = 0.0, velocity_m_s: float = 0.3, force_n: float = 3.0) -> list[Parameter]:
     return [
-        Parameter("bow_position", "", 0.0, 1.0, position, "where the bow touches, as strike_position"),
+        Parameter("bow_position", "", 0.0, 1.0, position, "where the bow touches, as strike_position", when=BOWED),
         Parameter("bow_velocity_m_s", "m/s", 0.01, 3.0, velocity_m_s,
-                  "bow speed: the steady amplitude follows it (glides over 20 ms when changed)", scale="log"),
+                  "bow speed: the steady amplitude follows it (glides over 20 ms when changed)", scale="log",
+                  when=BOWED),
         Parameter("bow_force_n", "N", 0.01, 20.0, force_n,
                   "how hard the bow presses: more force sustains at higher speeds (glides over 20 ms)",
-                  scale="log"),
+                  scale="log", when=BOWED),
         Parameter("bow_duration_s", "s", 0.01, 600.0, 1.5,
                   "how long a stroke moves the bow before it slows to rest (it then damps the bar for "
-                  "0.5 s and is lifted)", scale="log"),
+                  "0.5 s and is lifted)", scale="log", when=BOWED),
         Parameter("bow_ramp_ms", "ms", 1.0, 1000.0, 50.0,
-                  "how long the bow takes to press and speed up, and to slow to rest", scale="log"),
+                  "how long the bow takes to press and speed up, and to slow to rest", scale="log", when=BOWED),
     ]
 
 
@@ -195,7 +206,7 @@ class BarModel:
                             normalize=normalize, dtype=dtype)
 
 
-def material_parameter() -> Parameter:
+def material_parameter(note: str = "", when: Any = ()) -> Parameter:
     """``material``: a name from the materials table that sets ``youngs_modulus_pa`` and
     ``density_kg_m3`` (``custom``: those two as given)."""
     from ..physics.materials import material, materials
@@ -205,7 +216,7 @@ def material_parameter() -> Parameter:
         return m.youngs_modulus_pa, m.density_kg_m3
 
     return Parameter("material", "", None, None, "custom",
-                     "a material from the materials table (barsynth materials): sets youngs_modulus_pa and "
-                     "density_kg_m3; custom keeps those as given",
-                     kind=CHOICE, choices=("custom", *materials()),
+                     f"{note}a material from the materials table (barsynth materials): sets youngs_modulus_pa "
+                     "and density_kg_m3; custom keeps those as given",
+                     kind=CHOICE, choices=("custom", *materials()), when=when,
                      sets=Sets(("youngs_modulus_pa", "density_kg_m3"), lookup))

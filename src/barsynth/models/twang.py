@@ -56,6 +56,7 @@ from ..errors import ParameterError
 from ..parameters import BOOL, CHOICE, Parameter, ParameterTable
 from . import twang_kernel as K
 from .base import Mode, resolve_parameters
+from .shared import material_parameter
 from .rendering import (
     check_block_size,
     check_dtype,
@@ -76,6 +77,7 @@ TWANG_TABLE = ParameterTable(
                   "Young's modulus E of the ruler (acrylic 3.2 GPa, steel 200 GPa)", scale="log"),
         Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 1180.0,
                   "density rho of the ruler material", scale="log"),
+        material_parameter(),
         Parameter("length_m", "m", 0.05, 1.0, 0.30,
                   "clamped length L, from the finger to the tip (the paper's 'whole bar')"),
         Parameter("thickness_m", "m", 0.0003, 0.02, 0.003,
@@ -95,7 +97,8 @@ TWANG_TABLE = ParameterTable(
                   "slide: the short-cantilever modes rise 35 % (the ruler is shortened)",
                   kind=BOOL),
         Parameter("slide_time_s", "s", 0.05, 10.0, 1.0,
-                  "duration of the slide's S-shaped rise, from the trigger", scale="log"),
+                  "duration of the slide's S-shaped rise, from the trigger", scale="log",
+                  when={"slide": (True,)}),
         Parameter("short_length_ratio", "", 0.3, 0.95, 0.7,
                   "length of the short cantilever at the desk edge, as a fraction of L"),
         Parameter("full_cantilever_gain", "", 0.0, 1.0, 1.0,
@@ -122,10 +125,10 @@ _KERNEL_ORDER = (
     (K.P_SHORT_GAIN, "short_cantilever_gain"), (K.P_FREE_GAIN, "free_bar_gain"),
     (K.P_NOISE_CUTOFF, "noise_cutoff_hz"), (K.P_BAND_Q, "free_band_q"), (K.P_LEVEL_DB, "level_db"),
 )
-assert tuple(name for _, name in sorted(_KERNEL_ORDER)) == TWANG_TABLE.names
-assert len(TWANG_TABLE) == K.N_PARAMS
+assert tuple(name for _, name in sorted(_KERNEL_ORDER)) == tuple(n for n in TWANG_TABLE.names if n != "material")
+assert len(TWANG_TABLE) - 1 == K.N_PARAMS
 
-_LOG_MASK = np.array([p.scale == "log" for p in TWANG_TABLE], dtype=np.bool_)
+_LOG_MASK = np.array([TWANG_TABLE[name].scale == "log" for _, name in sorted(_KERNEL_ORDER)], dtype=np.bool_)
 
 
 def _lambdas() -> np.ndarray:
