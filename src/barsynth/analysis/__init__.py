@@ -14,11 +14,11 @@ import os
 from pathlib import Path
 from typing import Any
 
+from ..audio_io import load_audio
 from .partials import (
     Partial,
     band_decay_t60,
     find_partials,
-    load_audio,
     measure_partial,
     partial_ratios,
 )

@@ -51,21 +51,19 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import os
-import stat
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ..checks import check_array, check_number, check_whole
-from ..errors import AudioFileError, ParameterError
+from ..errors import ParameterError
+from ..jsonout import json_number
 
 __all__ = [
     "Partial",
     "band_decay_t60",
     "find_partials",
-    "load_audio",
     "measure_partial",
     "partial_ratios",
 ]
@@ -115,12 +113,6 @@ class Partial:
             "level_db": json_number(self.level_db),
             "t60_s": json_number(self.t60_s),
         }
-
-
-def json_number(value: float) -> float | None:
-    """``value`` as a float, or None where JSON has no number for it (infinite or NaN)."""
-    value = float(value)
-    return value if math.isfinite(value) else None
 
 
 # ----------------------------------------------------------------------------------
@@ -1233,44 +1225,3 @@ def band_decay_t60(
     if slope >= 0:
         return math.inf
     return float(-60.0 / slope)
-
-
-MIN_AUDIO_RATE_HZ = 100.0
-
-
-def load_audio(path: str | os.PathLike[str]) -> tuple[np.ndarray, float]:
-    """Read a WAV, FLAC or OGG file as mono float64 samples and its sample rate (Hz).
-
-    Channels are averaged. Raises :class:`~barsynth.errors.AudioFileError` (one line,
-    naming the file) when the file is missing, unreadable, empty or of a kind
-    libsndfile does not know.
-    """
-    import soundfile
-
-    from ..checks import show_text
-
-    name = os.fspath(path)
-    if not os.path.exists(name):
-        raise AudioFileError(f"audio file {show_text(name)}: no such file")
-    if os.path.isdir(name):
-        raise AudioFileError(f"audio file {show_text(name)}: is a directory, not a sound file")
-    if not stat.S_ISREG(os.stat(name).st_mode):  # a FIFO or device would block or never end
-        raise AudioFileError(f"audio file {show_text(name)}: is not a regular file")
-    try:
-        data, rate = soundfile.read(name, dtype="float64", always_2d=True)
-    except (RuntimeError, soundfile.SoundFileError, OSError, ValueError) as exc:
-        reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise AudioFileError(
-            f"audio file {show_text(name)}: cannot be read as WAV, FLAC or OGG ({reason})"
-        ) from None
-    if data.shape[0] == 0:
-        raise AudioFileError(f"audio file {show_text(name)}: contains no samples")
-    if rate < MIN_AUDIO_RATE_HZ:
-        raise AudioFileError(
-            f"audio file {show_text(name)}: sample rate {rate} Hz is too low; allowed: at least "
-            f"{MIN_AUDIO_RATE_HZ:g} Hz"
-        )
-    mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0].copy()
-    if not np.all(np.isfinite(mono)):
-        raise AudioFileError(f"audio file {show_text(name)}: contains non-finite samples")
-    return mono, float(rate)
