@@ -15,14 +15,10 @@ from pathlib import Path
 from typing import Any
 
 from ..audio_io import load_audio
-from .partials import (
-    Partial,
-    band_decay_t60,
-    find_partials,
-    measure_partial,
-    partial_ratios,
-)
+from .decay import band_decay_t60
+from .partial import Partial, partial_ratios
 from .plots import spectrogram
+from .search import find_partials, measure_partial
 
 __all__ = [
     "Partial",
