@@ -25,7 +25,7 @@ MODULES = [
     "barsynth.dsp.bow_stroke",
     "barsynth.analysis.bowing",
     "barsynth.studio.presets_file",
-    "barsynth.analysis.partials",
+    "barsynth.analysis.search",
     "barsynth.analysis.plots",
     "barsynth.parameters",
 ]

@@ -18,12 +18,9 @@ from typing import Any
 
 import click
 
+from .audio_io import SUBTYPES
 from .checks import show_text
 from .errors import BarsynthError, ParameterError
-
-AUDIO_FORMATS = {".wav": "WAV", ".flac": "FLAC", ".ogg": "OGG"}
-MAX_OGG_RATE = 192_000.0  # libvorbis refuses (and older builds crash) above this
-SUBTYPES = ("PCM_16", "PCM_24", "FLOAT")
 
 
 def _fail(message: str) -> None:
@@ -266,16 +263,6 @@ def describe(model_name, preset, assignments, sample_rate, as_json):
         click.echo(f"{m.group:<18} {m.frequency_hz:>15.3f} {m.gain:>8.4f} {m.t60_s:>9.3f}{error}")
 
 
-def _output_format(path: Path) -> str:
-    fmt = AUDIO_FORMATS.get(path.suffix.lower())
-    if fmt is None:
-        raise ParameterError(
-            f"parameter output = {show_text(path)} has an unsupported extension; "
-            f"allowed: {', '.join(AUDIO_FORMATS)}"
-        )
-    return fmt
-
-
 def _check_writable_dir(path: Path, what: str) -> None:
     """An output path: not an existing FIFO, device or folder, in a folder that exists and is writable."""
     from .checks import check_output_file
@@ -345,37 +332,28 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
       barsynth render twang --preset steel-30cm -o steel.wav
       barsynth render twang --set q=300 --set vibrato_rate_hz=5 --duration 3 -o wobble.wav
     """
+    from .audio_io import output_format, output_subtype, write_audio
     from .models.rendering import check_duration
 
     model = _model(model_name)
     resolved = _resolve(model, preset, assignments)
     rate = _sample_rate(sample_rate)
     seconds = check_duration(duration)
-    fmt = _output_format(output)
+    fmt = output_format(output)
     _check_writable_dir(output, "output")
     if plot_path is not None:
         if plot_path.suffix.lower() != ".png":
             raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
         _check_writable_dir(plot_path, "plot")
     import numpy as np
-    import soundfile
 
-    if fmt == "OGG" and subtype != "PCM_24":
-        raise ParameterError(f"parameter subtype = {subtype!r} does not apply to .ogg files")
-    if fmt == "OGG" and rate > MAX_OGG_RATE:
-        raise ParameterError(f"parameter sample_rate = {rate:g} is too high for .ogg files; "
-                             f"allowed: up to {MAX_OGG_RATE:g} Hz")
-    file_subtype = "VORBIS" if fmt == "OGG" else subtype
-    if not soundfile.check_format(fmt, file_subtype):
-        raise ParameterError(f"parameter subtype = {subtype!r} cannot be written to "
-                             f"{output.suffix} files; allowed: PCM_16 or PCM_24")
+    file_subtype = output_subtype(fmt, subtype, rate, output.suffix)
     samples = model.render(resolved, duration_s=seconds, sample_rate=rate, seed=seed,
                            normalize=not raw)
     # (non-finite or exploding samples were refused by the render: models.rendering.check_samples)
     if raw and np.max(np.abs(samples)) > 1.0 and subtype != "FLOAT":
         raise ParameterError("the raw render exceeds full scale; use --subtype FLOAT or drop --raw")
-    jobs = [(output, lambda tmp: soundfile.write(tmp, samples, int(rate), format=fmt,
-                                                  subtype=file_subtype))]
+    jobs = [(output, lambda tmp: write_audio(tmp, samples, rate, fmt=fmt, subtype=file_subtype))]
     if plot_path is not None:
         from .analysis import plot_sound
 
@@ -504,8 +482,9 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
               help="Also draw a waveform + spectrogram PNG with the partials marked.")
 def analyze(path, as_json, max_partials, plot_path):
     """Find a sound's partials: frequency, level, T60, and ratios to the lowest."""
-    from .analysis import find_partials, load_audio, partial_ratios
-    from .analysis.partials import json_number
+    from .analysis import find_partials, partial_ratios
+    from .audio_io import load_audio
+    from .jsonout import json_number
 
     if not 1 <= max_partials <= 500:
         raise ParameterError(f"parameter max_partials = {max_partials} is out of range; allowed: 1 to 500")

@@ -131,17 +131,6 @@ def guard(app: Any, allowed: Any, limit: int, who: str) -> None:
     app.add_middleware(headers)
 
 
-def wav_bytes(samples: Any, sample_rate: float) -> bytes:
-    """A mono 16-bit PCM WAV file of ``samples``, which every browser plays."""
-    import io
-
-    import soundfile
-
-    buffer = io.BytesIO()
-    soundfile.write(buffer, samples, int(round(sample_rate)), format="WAV", subtype="PCM_16")
-    return buffer.getvalue()
-
-
 def no_constants(name: str) -> None:
     raise ValueError(f"{name} is not a number JSON allows")
 

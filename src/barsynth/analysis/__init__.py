@@ -14,15 +14,11 @@ import os
 from pathlib import Path
 from typing import Any
 
-from .partials import (
-    Partial,
-    band_decay_t60,
-    find_partials,
-    load_audio,
-    measure_partial,
-    partial_ratios,
-)
+from ..audio_io import load_audio
+from .decay import band_decay_t60
+from .partial import Partial, partial_ratios
 from .plots import spectrogram
+from .search import find_partials, measure_partial
 
 __all__ = [
     "Partial",

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..checks import show_text
 from ..errors import ParameterError
-from .partials import Partial, _as_signal, _positive
+from .inputs import as_signal, positive
+from .partial import Partial
 
 __all__ = ["plot_sound", "spectrogram"]
 
@@ -48,8 +49,8 @@ def spectrogram(
     from scipy.signal import ShortTimeFFT
     from scipy.signal.windows import hann
 
-    x, fs = _as_signal(samples, sample_rate)
-    window_s = _positive("window_s", window_s, "s")
+    x, fs = as_signal(samples, sample_rate)
+    window_s = positive("window_s", window_s, "s")
     win_len = int(round(window_s * fs))
     if win_len < 4 or win_len > 2 * x.size:
         raise ParameterError(
@@ -59,7 +60,7 @@ def spectrogram(
     if hop_s is None:
         hop = max(1, win_len // 4)
     else:
-        hop_s = _positive("hop_s", hop_s, "s")
+        hop_s = positive("hop_s", hop_s, "s")
         hop = int(round(hop_s * fs))
         if hop < 1:
             raise ParameterError(
@@ -107,7 +108,7 @@ def plot_sound(
     pathlib.Path
         The file written.
     """
-    x, fs = _as_signal(samples, sample_rate)
+    x, fs = as_signal(samples, sample_rate)
     out = Path(os.fspath(path))
     if not out.parent.is_dir():
         raise ParameterError(
@@ -122,7 +123,7 @@ def plot_sound(
     if max_frequency_hz is None:
         top = min(nyq, 1.5 * max(marks)) if marks else nyq
     else:
-        top = _positive("max_frequency_hz", max_frequency_hz, "Hz")
+        top = positive("max_frequency_hz", max_frequency_hz, "Hz")
         top = min(top, nyq)
 
     low = min(marks) / 1.5 if marks else 20.0

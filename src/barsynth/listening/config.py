@@ -193,7 +193,7 @@ def _clip(path: Path, where: str, clip_id: str, entry: dict, rate: float) -> Cli
     if has_file:
         if set(entry) - {"id", "file"}:
             raise ConfigError(f"config {show_text(path)}: {where}: a file clip takes only id and file")
-        from ..analysis import load_audio
+        from ..audio_io import load_audio
 
         audio = (path.parent / str(entry["file"])).resolve()
         try:

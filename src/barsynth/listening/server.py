@@ -32,8 +32,9 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 
+from ..audio_io import wav_bytes
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, hosts_for, listen_socket, read_json,
-                         server_config, shown_address, wav_bytes)
+                         server_config, shown_address)
 from .config import ListeningTest, load_test
 from .session import Session, fingerprint, make_plan
 from .store import ResultsStore

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.partials import json_number
+from ..jsonout import json_number
 
 SPECTROGRAM_ROWS = 256
 MAX_COLUMNS = 1200

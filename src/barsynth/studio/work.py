@@ -27,7 +27,8 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable
 
-from ..webserver import Refused, wav_bytes
+from ..audio_io import wav_bytes
+from ..webserver import Refused
 
 MAX_RENDERS = 2
 RENDER_WAIT_S = 10.0

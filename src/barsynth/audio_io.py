@@ -1,0 +1,119 @@
+"""Reading and writing sound files (WAV, FLAC, OGG) through soundfile (libsndfile).
+
+Importing this module is cheap: numpy and soundfile load on first use.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+from typing import Any
+
+from .checks import show_text
+from .errors import AudioFileError, ParameterError
+
+__all__ = [
+    "AUDIO_FORMATS",
+    "MAX_OGG_RATE",
+    "MIN_AUDIO_RATE_HZ",
+    "SUBTYPES",
+    "load_audio",
+    "output_format",
+    "output_subtype",
+    "wav_bytes",
+    "write_audio",
+]
+
+AUDIO_FORMATS = {".wav": "WAV", ".flac": "FLAC", ".ogg": "OGG"}
+MAX_OGG_RATE = 192_000.0  # libvorbis refuses (and older builds crash) above this
+SUBTYPES = ("PCM_16", "PCM_24", "FLOAT")
+MIN_AUDIO_RATE_HZ = 100.0
+
+
+def load_audio(path: str | os.PathLike[str]) -> tuple[Any, float]:
+    """Read a WAV, FLAC or OGG file as mono float64 samples (a numpy array) and its sample rate (Hz).
+
+    Channels are averaged. Raises :class:`~barsynth.errors.AudioFileError` (one line,
+    naming the file) when the file is missing, unreadable, empty or of a kind
+    libsndfile does not know.
+    """
+    import numpy as np
+    import soundfile
+
+    name = os.fspath(path)
+    if not os.path.exists(name):
+        raise AudioFileError(f"audio file {show_text(name)}: no such file")
+    if os.path.isdir(name):
+        raise AudioFileError(f"audio file {show_text(name)}: is a directory, not a sound file")
+    if not stat.S_ISREG(os.stat(name).st_mode):  # a FIFO or device would block or never end
+        raise AudioFileError(f"audio file {show_text(name)}: is not a regular file")
+    try:
+        data, rate = soundfile.read(name, dtype="float64", always_2d=True)
+    except (RuntimeError, soundfile.SoundFileError, OSError, ValueError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise AudioFileError(
+            f"audio file {show_text(name)}: cannot be read as WAV, FLAC or OGG ({reason})"
+        ) from None
+    if data.shape[0] == 0:
+        raise AudioFileError(f"audio file {show_text(name)}: contains no samples")
+    if rate < MIN_AUDIO_RATE_HZ:
+        raise AudioFileError(
+            f"audio file {show_text(name)}: sample rate {rate} Hz is too low; allowed: at least "
+            f"{MIN_AUDIO_RATE_HZ:g} Hz"
+        )
+    mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0].copy()
+    if not np.all(np.isfinite(mono)):
+        raise AudioFileError(f"audio file {show_text(name)}: contains non-finite samples")
+    return mono, float(rate)
+
+
+def output_format(path: Path) -> str:
+    """The file format (``"WAV"``, ``"FLAC"`` or ``"OGG"``) an output path's extension asks for."""
+    fmt = AUDIO_FORMATS.get(path.suffix.lower())
+    if fmt is None:
+        raise ParameterError(
+            f"parameter output = {show_text(path)} has an unsupported extension; "
+            f"allowed: {', '.join(AUDIO_FORMATS)}"
+        )
+    return fmt
+
+
+def output_subtype(fmt: str, subtype: str, sample_rate: float, suffix: str) -> str:
+    """The libsndfile subtype to write ``fmt`` with, given the sample format asked for.
+
+    OGG files are Vorbis: they take only the default ``subtype`` (PCM_24, which then
+    means nothing) and rates up to :data:`MAX_OGG_RATE`. ``suffix`` is the output
+    file's extension, for the message when the format cannot hold the subtype.
+    """
+    import soundfile
+
+    if fmt == "OGG" and subtype != "PCM_24":
+        raise ParameterError(f"parameter subtype = {subtype!r} does not apply to .ogg files")
+    if fmt == "OGG" and sample_rate > MAX_OGG_RATE:
+        raise ParameterError(f"parameter sample_rate = {sample_rate:g} is too high for .ogg files; "
+                             f"allowed: up to {MAX_OGG_RATE:g} Hz")
+    file_subtype = "VORBIS" if fmt == "OGG" else subtype
+    if not soundfile.check_format(fmt, file_subtype):
+        raise ParameterError(f"parameter subtype = {subtype!r} cannot be written to "
+                             f"{suffix} files; allowed: PCM_16 or PCM_24")
+    return file_subtype
+
+
+def write_audio(path: str | os.PathLike[str], samples: Any, sample_rate: float, *, fmt: str,
+                subtype: str) -> None:
+    """Write ``samples`` to ``path`` as ``fmt`` (see :func:`output_format`) and libsndfile ``subtype``."""
+    import soundfile
+
+    soundfile.write(path, samples, int(sample_rate), format=fmt, subtype=subtype)
+
+
+def wav_bytes(samples: Any, sample_rate: float) -> bytes:
+    """A mono 16-bit PCM WAV file of ``samples``, which every browser plays."""
+    import io
+
+    import soundfile
+
+    buffer = io.BytesIO()
+    soundfile.write(buffer, samples, int(round(sample_rate)), format="WAV", subtype="PCM_16")
+    return buffer.getvalue()
