@@ -1,12 +1,14 @@
 // barsynth studio: the controls, built from the chosen model's parameter table (GET /api/models):
 // a slider and a number box for a number, a <select> for a choice, a checkbox for a bool and a
-// text box for a list.
+// text box for a list. A row whose "when" ({"excitation": ["bow"]}) does not hold for the
+// current values is greyed out: disabled, dimmed, its title saying under which settings it acts.
 
 import { $, RATE, api, clearMessage, current, element, failed, fmt, listText, same, studio } from "./page.js";
 
 const SLIDER_STEPS = 1000;
 
-const controls = new Map();  // name -> {row, show(value)}
+const controls = new Map();  // name -> {row, show(value), wrap, inputs, tip}
+const controllers = new Set();  // the names other rows' "when" depend on
 let changed = () => {};  // what an accepted change sets off besides (the live sound, the pictures)
 
 // What else happens when a control changes a value (app.js: the live sound and the pictures).
@@ -71,6 +73,37 @@ function asTyped(row, text) {
   return raw;
 }
 
+// --- when a control acts -----------------------------------------------------------------------
+
+// Whether a row has any effect with these values: its "when" names parameters and the values
+// under which it acts (all must hold); a row without "when" always acts.
+export function acts(row, values) {
+  return !row.when || Object.entries(row.when).every(([name, allowed]) => allowed.some((a) => same(a, values[name])));
+}
+
+// "excitation = bow", "tuning = ratios and shape = bar or ring": a "when" in words.
+export function whenText(when) {
+  return Object.entries(when).map(([name, allowed]) => `${name} = ${allowed.map(String).join(" or ")}`)
+    .join(" and ");
+}
+
+// Grey out every control that has no effect now and bring back every one that has.
+function greyOut() {
+  const inactive = [];
+  for (const [name, control] of controls) {
+    const on = acts(control.row, current.values);
+    if (!on) inactive.push(name);
+    const title = on ? control.tip : `no effect unless ${whenText(control.row.when)}; ${control.tip}`;
+    control.wrap.classList.toggle("inactive", !on);
+    control.wrap.title = title;
+    for (const input of control.inputs) {
+      input.disabled = !on;
+      input.title = title;
+    }
+  }
+  studio.inactive = inactive;
+}
+
 // --- controls ----------------------------------------------------------------------------------
 
 function makeControl(row) {
@@ -81,6 +114,7 @@ function makeControl(row) {
   const label = element("label", { htmlFor: id, class: "name" }, row.name);
   const unit = element("span", { class: "unit" }, row.unit);
   let show;
+  let inputs;
 
   if (row.kind === "float" || row.kind === "int") {
     const slider = element("input", { type: "range", id, min: "0", max: String(sliderSteps(row)), step: "1",
@@ -98,6 +132,7 @@ function makeControl(row) {
       slider.value = String(toSlider(row, v));
       box.value = fmt(v);
     };
+    inputs = [slider, box];
     wrap.append(label, slider, box, unit);
     wrap.classList.add("slider");
   } else if (row.kind === "choice") {
@@ -105,44 +140,53 @@ function makeControl(row) {
     for (const c of row.choices) select.append(element("option", { value: c }, c));
     select.addEventListener("change", () => change(row.name, select.value));
     show = (v) => { select.value = v; };
+    inputs = [select];
     wrap.append(label, select, unit);
   } else if (row.kind === "bool") {
     const box = element("input", { type: "checkbox", id, title: tip });
     box.addEventListener("change", () => change(row.name, box.checked));
     show = (v) => { box.checked = !!v; };
+    inputs = [box];
     wrap.append(label, box, unit);
   } else {  // floats: "1,4,10"
     const text = element("input", { type: "text", id, title: tip, placeholder: "e.g. 1,4,10", class: "list",
       spellcheck: false });
     text.addEventListener("change", () => typed(row.name, text.value));
     show = (v) => { text.value = listText(v); };
+    inputs = [text];
     wrap.append(label, text, unit);
   }
-  controls.set(row.name, { row, show });
+  controls.set(row.name, { row, show, wrap, inputs, tip });
   return wrap;
 }
 
 export function buildControls() {
   controls.clear();
+  controllers.clear();
+  for (const row of current.model.parameters) {
+    for (const name of Object.keys(row.when || {})) controllers.add(name);
+  }
   $("controls").replaceChildren(...current.model.parameters.map(makeControl));
 }
 
-// Every control shows the current values (a preset, the defaults).
+// Every control shows the current values (a preset, the defaults), greyed out where it has no effect.
 export function showAll() {
   for (const [name, control] of controls) control.show(current.values[name]);
   studio.values = { ...current.values };
+  greyOut();
 }
 
 function rowOf(name) {
   return current.model.parameters.find((r) => r.name === name);
 }
 
-// An accepted change from a control: remember it, send it to the live sound and redraw the
-// pictures (onChange).
+// An accepted change from a control: remember it, grey out what it turns off, send it to the
+// live sound and redraw the pictures (onChange).
 function change(name, v) {
   clearMessage();
   current.values[name] = v;
   studio.values = { ...current.values };
+  if (controllers.has(name)) greyOut();
   changed(name, v);
 }
 

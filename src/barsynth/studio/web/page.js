@@ -6,7 +6,8 @@
 // sent to its first sample leaving the speakers) and changeLatencies (from the change being
 // made: a set may wait for the one before it), sets, lastSet ({id, parameters} of the last set
 // sent), heardSetId, setsWaiting, playedReports (sent to the server, heartbeats too), streams
-// (sockets opened) and closes (closed by the server or the network), lastPicture and errors.
+// (sockets opened) and closes (closed by the server or the network), lastPicture and errors;
+// also inactive (the names of the controls greyed out because they have no effect now).
 
 export const $ = (id) => document.getElementById(id);
 
@@ -18,6 +19,7 @@ export const studio = {
   model: null,
   preset: "",
   values: {},
+  inactive: [],
   blocksReceived: 0,
   samplesPlayed: 0,
   buffered: 0,
