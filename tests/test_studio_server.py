@@ -117,11 +117,31 @@ def test_the_page_and_its_files_are_served_with_their_types(client):
     page = client.get("/")
     assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
     assert "default-src 'self'" in page.headers["content-security-policy"]
-    for name, kind in [("app.js", "text/javascript"), ("worklet.js", "text/javascript"),
-                       ("link.js", "text/javascript"), ("style.css", "text/css")]:
+    scripts = ["app.js", "page.js", "controls.js", "live.js", "plots.js", "files.js", "worklet.js", "link.js"]
+    for name, kind in [*((name, "text/javascript") for name in scripts), ("style.css", "text/css")]:
         r = client.get(f"/static/{name}")
         assert r.status_code == 200 and r.headers["content-type"].startswith(kind) and r.content
-    assert client.get("/static/server.py").status_code == 404
+        assert r.headers["x-content-type-options"] == "nosniff"
+    for name in ("server.py", "__init__.py", "..%2Fserver.py", "index.html", "app", "APP.JS"):
+        assert client.get(f"/static/{name}").status_code == 404
+
+
+def test_every_module_the_page_imports_is_served():
+    """The page's ES modules import each other by relative name: each one imported must be among
+    the files the server serves, and every .js file in web/ must be served (none forgotten)."""
+    import re
+    from importlib import resources
+
+    from barsynth.studio.server import _STATIC
+
+    web = resources.files("barsynth.studio") / "web"
+    page = (web / "index.html").read_text()
+    assert '<script type="module" src="/static/app.js"></script>' in page
+    shipped = {f.name for f in web.iterdir() if f.name.endswith((".js", ".css"))}
+    assert shipped == set(_STATIC)
+    for name in shipped:
+        for imported in re.findall(r'^import .* from "\./([\w.]+)";$', (web / name).read_text(), re.M):
+            assert imported in _STATIC, f"{name} imports {imported}, which the server does not serve"
 
 
 def test_a_picture_shows_the_sound_of_the_settings(client):

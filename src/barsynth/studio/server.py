@@ -59,8 +59,12 @@ SAMPLE_RATES = (22050, 44100, 48000, 96000)
 MAX_STREAMS = 4
 DEFAULT_PORT = 8050
 _NO_STORE = {"Cache-Control": "no-store"}
-_STATIC = {"app.js": "text/javascript; charset=utf-8", "worklet.js": "text/javascript; charset=utf-8",
-           "link.js": "text/javascript; charset=utf-8", "style.css": "text/css; charset=utf-8"}
+_JS = "text/javascript; charset=utf-8"
+# The page's files (only these are served): app.js and the ES modules it imports, the worklet,
+# the stream's worker and the style sheet.
+_STATIC = {**{name: _JS for name in ("app.js", "page.js", "controls.js", "live.js", "plots.js", "files.js",
+                                    "worklet.js", "link.js")},
+           "style.css": "text/css; charset=utf-8"}
 
 
 def _model(name: Any) -> Any:

@@ -1,0 +1,123 @@
+// barsynth studio: settings in and out: models and presets loaded (GET /api/models/.../presets/...),
+// WAV files (POST /api/render) and preset files (POST /api/preset-file) saved, and a link to the
+// current settings (the model, the preset and what differs from it, in the address).
+
+import { buildControls, defaults, showAll, typed } from "./controls.js";
+import { restart } from "./live.js";
+import { $, RATE, api, clearMessage, current, element, failed, listText, same, studio } from "./page.js";
+import { schedulePicture } from "./plots.js";
+
+// --- models and presets ------------------------------------------------------------------------
+
+export async function chooseModel(name, wanted = {}) {
+  current.model = current.models.get(name);
+  studio.model = name;
+  $("model").value = name;
+  $("summary").textContent = current.model.summary;
+  const presetSelect = $("preset");
+  presetSelect.replaceChildren(element("option", { value: "" }, "(defaults)"),
+    ...current.model.presets.map((p) => element("option", { value: p }, p)));
+  buildControls();
+  await choosePreset(wanted.preset || "", wanted.overrides);  // an unknown one: the server's message
+}
+
+export async function choosePreset(name, overrides) {
+  let loaded = defaults();
+  let description = `${current.model.name} settings`;
+  if (name) {
+    try {
+      const data = await api("GET", `/api/models/${encodeURIComponent(current.model.name)}/presets/${encodeURIComponent(name)}`);
+      loaded = data.parameters;
+      description = data.description || description;
+    } catch (err) {
+      failed(err);
+      name = "";
+    }
+  }
+  $("preset").value = name;
+  studio.preset = name;
+  current.base = { ...loaded };
+  current.values = { ...loaded };
+  $("description").value = description;
+  showAll();
+  if (overrides) {
+    for (const [key, text] of overrides) {
+      if (key !== "model" && key !== "preset") await typed(key, text);
+    }
+  }
+  restart();
+  schedulePicture(0);
+}
+
+// --- files and links ---------------------------------------------------------------------------
+
+function save(blob, filename) {
+  const url = URL.createObjectURL(blob);
+  const link = $("saver");
+  link.href = url;
+  link.download = filename;
+  link.click();
+  setTimeout(() => URL.revokeObjectURL(url), 60000);
+}
+
+async function busy(button, work) {
+  button.disabled = true;
+  try {
+    await work();
+  } catch (err) {
+    failed(err);
+  } finally {
+    button.disabled = false;
+  }
+}
+
+export function download() {
+  const name = current.model.name;
+  const text = $("duration").value.trim();
+  const duration = text !== "" && Number.isFinite(Number(text)) ? Number(text) : text;
+  return busy($("download"), async () => {
+    const blob = await api("POST", "/api/render",
+      { model: name, parameters: { ...current.values }, duration_s: duration, sample_rate: RATE }, true);
+    clearMessage();
+    save(blob, `${name}.wav`);
+  });
+}
+
+export function savePreset() {
+  const name = current.model.name;
+  const description = $("description").value.trim() || `${name} settings`;
+  return busy($("save-preset"), async () => {
+    const blob = await api("POST", "/api/preset-file", { model: name, parameters: { ...current.values }, description }, true);
+    clearMessage();
+    save(blob, `${name}.toml`);
+  });
+}
+
+function valueText(v) {
+  if (Array.isArray(v)) return listText(v);
+  return String(v);
+}
+
+function shareUrl() {
+  const query = new URLSearchParams();
+  query.set("model", current.model.name);
+  if (studio.preset) query.set("preset", studio.preset);
+  for (const row of current.model.parameters) {
+    if (!same(current.values[row.name], current.base[row.name])) query.set(row.name, valueText(current.values[row.name]));
+  }
+  return `${location.origin}${location.pathname}?${query}`;
+}
+
+export async function share() {
+  const url = shareUrl();
+  history.replaceState(null, "", url);
+  const field = $("share-url");
+  field.value = url;
+  field.select();
+  try {
+    await navigator.clipboard.writeText(url);
+    field.title = "copied to the clipboard";
+  } catch (err) {
+    field.title = "select and copy this link (the browser did not allow copying)";
+  }
+}
