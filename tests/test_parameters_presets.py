@@ -169,3 +169,34 @@ def test_a_material_sets_youngs_modulus_and_density():
         table.resolve({"material": "steel", "density_kg_m3": 3000})
     with pytest.raises(ParameterError, match="material"):
         table.resolve({"material": "unobtainium"})
+
+
+def test_a_typed_record_is_checked_against_its_table():
+    rows = [Parameter("length_m", "m", 0.1, 1.0, 0.3, "length"),
+            Parameter("count", "", 1, 9, 2, "count", kind=INT),
+            Parameter("shape", "", None, None, "bar", "", kind=CHOICE, choices=("bar", "ring"))]
+
+    @dataclasses.dataclass(frozen=True, kw_only=True)
+    class Good:
+        length_m: float
+        count: int
+        shape: str
+
+    table = ParameterTable("x", rows, record=Good)
+    assert table.resolve({"count": 3}) == Good(length_m=0.3, count=3, shape="bar")
+
+    @dataclasses.dataclass(frozen=True, kw_only=True)
+    class WrongType:
+        length_m: float
+        count: float
+        shape: str
+
+    @dataclasses.dataclass(frozen=True, kw_only=True)
+    class WrongOrder:
+        count: int
+        length_m: float
+        shape: str
+
+    for record in (WrongType, WrongOrder):
+        with pytest.raises(TypeError):
+            ParameterTable("x", rows, record=record)

@@ -244,7 +244,7 @@ def describe(model_name, preset, assignments, sample_rate, as_json):
     rate = _sample_rate(sample_rate)
     found = model.describe(resolved, sample_rate=rate)
     # a reference model also says how far each mode is from the converged bar
-    errors = model.errors_cents(resolved, sample_rate=rate) if hasattr(model, "errors_cents") else None
+    errors = model.errors_cents(resolved, sample_rate=rate) if model.reports_reference_errors else None
     if as_json:
         _json_out({
             "model": model.name,

@@ -255,27 +255,55 @@ def _fmt(x: float | None) -> str:
     return f"{x:g}"
 
 
-class ParameterTable:
-    """An ordered collection of :class:`Parameter` for one model."""
+_FIELD_TYPES = {FLOAT: "float", INT: "int", BOOL: "bool", CHOICE: "str", FLOATS: "tuple[float, ...]"}
 
-    def __init__(self, model: str, parameters: Iterable[Parameter]):
+
+class ParameterTable:
+    """An ordered collection of :class:`Parameter` for one model.
+
+    ``record``: the model's typed, frozen, keyword-only dataclass of resolved parameters
+    (``p.length_m`` reads as a float in an editor), checked here against the table: the same
+    names in the same order, each annotated with its kind's type (``float``, ``int``,
+    ``bool``, ``str`` for a choice, ``tuple[float, ...]`` for a list). Without one, a
+    dataclass of untyped fields is made from the table.
+    """
+
+    def __init__(self, model: str, parameters: Iterable[Parameter], *, record: type | None = None):
         self.model = model
         self.parameters: tuple[Parameter, ...] = tuple(parameters)
         self._by_name = {p.name: p for p in self.parameters}
         if len(self._by_name) != len(self.parameters):
             raise ValueError(f"{model}: duplicate parameter names")
-        fields = [(p.name, Any, dataclasses.field(default=p.default)) for p in self.parameters]
-        cls_name = "".join(part.capitalize() for part in model.replace("-", "_").split("_"))
-        self.dataclass = dataclasses.make_dataclass(
-            cls_name + "Parameters", fields, frozen=True, kw_only=True
-        )
-        self.dataclass.__doc__ = f"Resolved parameters of the {model} model (see its table)."
+        if record is None:
+            fields = [(p.name, Any, dataclasses.field(default=p.default)) for p in self.parameters]
+            cls_name = "".join(part.capitalize() for part in model.replace("-", "_").split("_"))
+            record = dataclasses.make_dataclass(cls_name + "Parameters", fields, frozen=True, kw_only=True)
+            record.__doc__ = f"Resolved parameters of the {model} model (see its table)."
+        else:
+            self._check_record(record)
+        self.dataclass = record
         self.dataclass._table = self  # a class attribute, not a field: lets an error message name the model
         for p in self.parameters:
             for name, values in p.when:
                 if name not in self._by_name or not all(
                         v in (self._by_name[name].choices or (True, False)) for v in values):
                     raise ValueError(f"{model}: {p.name} acts when {name} is {values}, not a value it takes")
+
+    def _check_record(self, record: type) -> None:
+        params = getattr(record, "__dataclass_params__", None)
+        if params is None or not params.frozen:
+            raise TypeError(f"{self.model}: {record.__name__} must be a frozen dataclass")
+        fields = dataclasses.fields(record)
+        names = tuple(f.name for f in fields)
+        if names != self.names:
+            raise TypeError(f"{self.model}: {record.__name__} has fields {names}, the table {self.names}")
+        for f, p in zip(fields, self.parameters):
+            if not f.kw_only:
+                raise TypeError(f"{self.model}: {record.__name__}.{f.name} must be keyword-only")
+            typed = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+            if typed != _FIELD_TYPES[p.kind]:
+                raise TypeError(f"{self.model}: {record.__name__}.{f.name} is annotated {typed!r}; "
+                                f"its table row ({p.kind}) needs {_FIELD_TYPES[p.kind]!r}")
 
     def __iter__(self):
         return iter(self.parameters)
@@ -289,6 +317,10 @@ class ParameterTable:
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.parameters)
+
+    def index(self, name: str) -> int:
+        """The row of parameter ``name`` (for a kernel's parameter vector: indices come from here)."""
+        return self.names.index(self[name].name)
 
     def __getitem__(self, name: str) -> Parameter:
         try:

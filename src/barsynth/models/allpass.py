@@ -204,6 +204,10 @@ class AllpassVoice:
     ((256,), 'float32', True)
     """
 
+    restarts_on_trigger = False
+    can_release = False
+    uses_seed = False
+
     def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0):
         self._params = resolve_parameters(MODEL, parameters)
         check_seed(seed)  # the model is deterministic; the seed is accepted for the common interface
@@ -310,6 +314,7 @@ class AllpassVoice:
 class AllpassModel:
     """The all-pass waveguide bar as a barsynth model (see the module docstring)."""
 
+    reports_reference_errors = False
     name = "allpass"
     summary = ("all-pass (generalised) waveguide bar (Van Duyne & Smith 1994): travelling bending waves "
                "through fitted dispersion filters, struck or plucked; a measured comparison")

@@ -266,6 +266,7 @@ class BandedVoice(BowedBarVoice):
 class BandedModel(BarModel):
     """Banded-waveguide objects as a barsynth model (see the module docstring)."""
 
+    reports_reference_errors = False
     name = "banded"
     summary = "banded waveguides (Essl & Cook 1999): struck, bowed or plucked bars, tuned bars, glasses, bowls"
     table = BANDED_TABLE

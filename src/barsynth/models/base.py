@@ -1,9 +1,11 @@
 """What every synthesis model offers, and the registry that finds them by name.
 
-A model is a small object with a parameter table, ``describe`` (the modes it will
-synthesise), ``voice`` (a streaming voice with prepare / reset / process / trigger)
-and ``render`` (offline, the same samples as the voice). The CLI and the web
-layer only ever talk to this interface.
+A model is a :class:`Model` with a parameter table, presets, ``describe`` (the modes it
+will synthesise), ``voice`` (a :class:`Voice`: prepare / reset / trigger / release /
+set_parameters / process) and ``render`` (offline, the same samples as the voice). The
+CLI and the web layer only ever talk to this contract. After STK's ``Instrmnt`` (one
+declared contract) and JUCE's ``dsp`` life cycle (allocate in ``prepare``, write into the
+caller's block in ``process``).
 """
 
 from __future__ import annotations
@@ -11,13 +13,14 @@ from __future__ import annotations
 import importlib
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
-from typing import Any, Protocol
+from typing import Any, ClassVar
 
 import numpy as np
 
 from ..errors import ModelError, ParameterError
-from ..checks import show_value
+from ..checks import check_whole, show_value
 from ..parameters import ParameterTable
+from .rendering import MAX_BLOCK_SAMPLES, check_block_size, check_dtype, check_sample_rate, check_seed
 
 
 @dataclass(frozen=True)
@@ -33,42 +36,210 @@ class Mode:
         return asdict(self)
 
 
-class Voice(Protocol):
-    """A streaming voice (JUCE-style life cycle)."""
+class Voice:
+    """One sounding instance of a model: the contract every model's voice keeps.
 
-    sample_rate: float
+    The life cycle is JUCE's: :meth:`prepare` (sample rate and largest block; allocates),
+    :meth:`reset` (silence), :meth:`trigger` / :meth:`release` (excite, let go),
+    :meth:`set_parameters` (a validated change while sounding) and :meth:`process` (the next
+    samples, into a buffer the caller may own). Blocks of any sizes give exactly the samples
+    of one long block.
 
-    def prepare(self, sample_rate: float, max_block: int | None = None) -> None: ...
+    A model's voice implements only its own part:
 
-    def reset(self) -> None: ...
+    - ``_prepare()``: design for ``self.sample_rate`` and ``self.parameters`` and allocate
+      (raise to refuse: the base then keeps the previous rate);
+    - ``_reset()``: silence;
+    - ``trigger()`` (and ``release()`` where ``can_release``);
+    - ``_update(old)``: follow a parameter change (``self.parameters`` is already the new
+      record; raise to refuse it: the base then restores ``old``);
+    - ``_render(out)``: write ``out.size`` samples into the float64 array ``out``.
 
-    def trigger(self) -> None: ...
+    What a voice can do is declared on its class, not guessed:
+    """
 
-    def set_parameters(self, **values: Any) -> None: ...
+    model: ClassVar[Any] = None
+    """The :class:`Model` this voice belongs to (set by the model)."""
+    restarts_on_trigger: ClassVar[bool] = False
+    """A trigger restarts the note (phasors back to 0, filters emptied) instead of adding to
+    what rings: :class:`~barsynth.models.crossfade.CrossfadingVoice` fades the old note out."""
+    can_release: ClassVar[bool] = False
+    """:meth:`release` does something (a bow stroke stops); otherwise it does nothing."""
+    uses_seed: ClassVar[bool] = False
+    """The seed drives noise in the sound; otherwise it is accepted and has no effect."""
+    DEFAULT_MAX_BLOCK: ClassVar[int] = 4096
 
-    def process(self, num_samples: int) -> np.ndarray: ...
+    def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0,
+                 max_block: int | None = None):
+        self._params = resolve_parameters(self.model, parameters)
+        self.seed = check_seed(seed)
+        self.prepare(sample_rate, max_block)
+
+    @property
+    def parameters(self) -> Any:
+        """The current (target) parameters, as the model's frozen record."""
+        return self._params
+
+    def prepare(self, sample_rate: float, max_block: int | None = None) -> None:
+        """Set the sample rate (Hz) and the largest block :meth:`process` will be asked for with a
+        buffer of the caller's (samples; longer ones are rendered in pieces), design, allocate
+        and reset. A refused rate changes nothing."""
+        rate = check_sample_rate(sample_rate)
+        block = self.DEFAULT_MAX_BLOCK if max_block is None else check_whole(
+            "max_block", max_block, "samples", 1, MAX_BLOCK_SAMPLES)
+        previous = self.__dict__.get("sample_rate")
+        self.sample_rate = rate
+        try:
+            self._prepare()
+        except Exception:
+            if previous is not None:
+                self.sample_rate = previous
+            raise
+        self.max_block = block
+        self._scratch = np.empty(block)
+        self.reset()
+
+    def reset(self) -> None:
+        """Silence: nothing rings, nothing is pending."""
+        self._reset()
+
+    def set_parameters(self, **values: Any) -> None:
+        """Change parameters (validated, merged with the current ones); the sound follows
+        without a click. A refused change changes nothing."""
+        table = self.model.table
+        new = resolve_parameters(self.model, {**table.as_dict(self._params), **values})
+        old, self._params = self._params, new
+        try:
+            self._update(old)
+        except Exception:
+            self._params = old
+            raise
+
+    def trigger(self) -> None:
+        """Excite the voice now (strike, pluck, bow stroke, twang)."""
+        raise NotImplementedError
+
+    def release(self) -> None:
+        """Let go (a bow stroke slows to rest); a voice that cannot release ignores it."""
+
+    def process(self, num_samples: int, *, out: np.ndarray | None = None, dtype: Any = np.float32) -> np.ndarray:
+        """The next ``num_samples`` samples (mono).
+
+        Without ``out``: a new array, float32 unless ``dtype`` says float64. With ``out`` (a
+        1-D float32 or float64 array of exactly ``num_samples``, which the caller owns): the
+        samples are written there and ``out`` is returned; nothing is allocated.
+        """
+        n = check_block_size(num_samples)
+        if out is None:
+            kind = check_dtype(dtype)
+            samples = np.empty(n)
+            if n:
+                self._render(samples)
+            return samples.astype(kind, copy=False)
+        check_out(out, n)
+        if out.dtype == np.float64:
+            if n:
+                self._render(out)
+            return out
+        for start in range(0, n, self.max_block):  # float32: computed in float64, then cast
+            stop = min(n, start + self.max_block)
+            piece = self._scratch[:stop - start]
+            self._render(piece)
+            out[start:stop] = piece
+        return out
+
+    # -- what a model implements -----------------------------------------------------------------
+    def _prepare(self) -> None:
+        raise NotImplementedError
+
+    def _reset(self) -> None:
+        raise NotImplementedError
+
+    def _update(self, old: Any) -> None:
+        raise NotImplementedError
+
+    def _render(self, out: np.ndarray) -> None:
+        raise NotImplementedError
 
 
-class Model(Protocol):
-    """The interface the CLI and web layers rely on."""
+def check_out(out: Any, num_samples: int) -> np.ndarray:
+    """A caller's output buffer: a writeable, contiguous 1-D float32 or float64 array of
+    ``num_samples``."""
+    if not (isinstance(out, np.ndarray) and out.ndim == 1 and out.dtype in (np.float32, np.float64)
+            and out.flags.c_contiguous and out.flags.writeable and out.size == num_samples):
+        shown = (f"{out.dtype} array of shape {out.shape}" if isinstance(out, np.ndarray)
+                 else type(out).__name__)
+        raise ParameterError(f"parameter out = {shown} is not allowed; allowed: a writeable, contiguous 1-D "
+                             f"float32 or float64 array of num_samples = {num_samples} samples")
+    return out
 
-    name: str
-    summary: str
-    table: ParameterTable
 
-    def describe(self, parameters: Any, *, sample_rate: float) -> list[Mode]: ...
+class Model:
+    """A synthesis model: its parameter table, its presets, its voices and offline renders.
 
-    def voice(self, parameters: Any = None, *, sample_rate: float, seed: int | None = 0) -> Voice: ...
+    A model names itself (``name``, ``summary``), its table (``table``), its voice class
+    (``voice_class``) and implements :meth:`describe`. ``reports_reference_errors``
+    declares :meth:`errors_cents` (each mode's error against a reference solution).
+    """
 
-    def render(
-        self,
-        parameters: Any = None,
-        *,
-        duration_s: float,
-        sample_rate: float,
-        seed: int | None = 0,
-        normalize: bool = True,
-    ) -> np.ndarray: ...
+    name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
+    table: ClassVar[ParameterTable]
+    voice_class: ClassVar[type[Voice]]
+    reports_reference_errors: ClassVar[bool] = False
+
+    def __init__(self) -> None:
+        self.voice_class.model = self
+
+    @property
+    def params(self) -> ParameterTable:
+        """The parameter table (name, unit, range, default, scale, doc of every control)."""
+        return self.table
+
+    @property
+    def presets(self) -> tuple[str, ...]:
+        """Names of the presets shipped for this model."""
+        from ..presets import preset_names
+
+        return preset_names(self.name)
+
+    def preset(self, name: str) -> Any:
+        """The parameters of the shipped preset ``name``, resolved (the model's record)."""
+        from ..presets import preset_parameters
+
+        return self.resolve(preset_parameters(self.name, name))
+
+    def resolve(self, parameters: Any = None) -> Any:
+        """``parameters`` (None, a mapping of overrides or the record) as the model's record."""
+        return resolve_parameters(self, parameters)
+
+    def voice(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0,
+              max_block: int | None = None) -> Voice:
+        """A new voice, prepared for ``sample_rate`` (Hz); see :class:`Voice`."""
+        return self.voice_class(parameters, sample_rate=sample_rate, seed=seed, max_block=max_block)
+
+    def render(self, parameters: Any = None, *, duration_s: Any = 2.0, sample_rate: float = 48000.0,
+               seed: int | None = 0, normalize: bool = True, dtype: Any = np.float32) -> np.ndarray:
+        """One note offline: a voice triggered once and rendered for ``duration_s`` seconds at
+        ``sample_rate`` Hz, peak-normalised to -1 dBFS unless ``normalize`` is false (then
+        exactly the voice's samples), float32 or float64 (``dtype``)."""
+        from .rendering import render_voice
+
+        check_dtype(dtype)
+        voice = self.voice(parameters, sample_rate=sample_rate, seed=seed)
+        self.check_renderable(voice)
+        return render_voice(voice, duration_s, normalize=normalize, dtype=dtype)
+
+    def check_renderable(self, voice: Voice) -> None:
+        """Refuse (ParameterError) a voice whose note would be no sound at all; by default all are fine."""
+
+    def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:
+        """The modes the model will synthesise: group, frequency (Hz), gain, T60 (s)."""
+        raise NotImplementedError
+
+    def errors_cents(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[float]:
+        """Each described mode's error (cents) against a reference (where ``reports_reference_errors``)."""
+        raise NotImplementedError(f"model {self.name} reports no reference errors")
 
 
 # name -> "module:attribute"; imported on first use so `import barsynth` stays fast.

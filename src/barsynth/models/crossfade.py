@@ -10,8 +10,8 @@ the change, so their gains sum to one). Both paths are continuous, so their mix 
 
 - ``set_parameters``: always cross-faded; a change that arrives during a fade waits
   for it to end (at most ``fade_s``), merged with any others that wait.
-- ``trigger``: a voice whose trigger restarts the sound (``TRIGGER_RESTARTS``: the
-  twang and Farnell's twang, which restart their phasors and empty their filters) rings
+- ``trigger``: a voice whose trigger restarts the sound (``restarts_on_trigger``: the
+  twang and Farnell's twang, whose voices declare ``restarts_on_trigger``) rings
   on in a copy that fades out while the new note starts at once, at full level, with its
   own attack (more triggers during that fade make one more restart after it); a voice
   whose strikes add to what rings (banded, all-pass, finite-difference) is struck as it
@@ -110,7 +110,7 @@ class CrossfadingVoice:
 
     def trigger(self) -> None:
         """Strike (twang, bow, pluck) now; a restarting note's old sound fades out."""
-        if not getattr(self.voice, "TRIGGER_RESTARTS", False):
+        if not type(self.voice).restarts_on_trigger:
             self.voice.trigger()  # strikes add to what rings: strike both sides of a fade alike
             if self._old is not None:
                 self._old.trigger()
@@ -124,7 +124,7 @@ class CrossfadingVoice:
     def release(self) -> None:
         """End a bow stroke (voices that have no bow ignore it)."""
         for voice in (self.voice, self._old):
-            if voice is not None and hasattr(voice, "release"):
+            if voice is not None and type(voice).can_release:
                 voice.release()
 
     def _next_event(self) -> None:

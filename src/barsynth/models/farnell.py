@@ -73,7 +73,9 @@ class FarnellVoice:
     (256,)
     """
 
-    TRIGGER_RESTARTS = True  # a trigger restarts the note (see models.crossfade)
+    restarts_on_trigger = True  # a trigger restarts the note (see models.crossfade)
+    can_release = False
+    uses_seed = True
 
     def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0):
         self._params = resolve_parameters(MODEL, parameters)
@@ -131,6 +133,7 @@ class FarnellVoice:
 class FarnellModel:
     """Farnell's twang as a barsynth model (see the module docstring)."""
 
+    reports_reference_errors = False
     name = "farnell"
     summary = "Farnell's ruler twang, Designing Sound 2010 (and, with anchor=true, the paper's anchor)"
     table = FARNELL_TABLE

@@ -385,6 +385,7 @@ def mode_errors_cents(parameters: Any = None, *, sample_rate: float = 48000.0, c
 class FdModel(BarModel):
     """The finite-difference bar as a barsynth model (see the module docstring)."""
 
+    reports_reference_errors = True
     name = "fd"
     summary = "finite-difference bar (implicit theta scheme): any boundary, undercut profiles; struck, bowed, plucked"
     table = FD_TABLE

@@ -207,7 +207,9 @@ class TwangVoice:
     >>> more = voice.process(256)
     """
 
-    TRIGGER_RESTARTS = True  # a trigger restarts the note (see models.crossfade)
+    restarts_on_trigger = True  # a trigger restarts the note (see models.crossfade)
+    can_release = False
+    uses_seed = True
 
     def __init__(self, parameters: Any = None, *, sample_rate: float = 48000.0, seed: int | None = 0,
                  mode_mask: Any = None):
@@ -294,6 +296,7 @@ class TwangVoice:
 class TwangModel:
     """The ruler twang as a barsynth model (see the module docstring)."""
 
+    reports_reference_errors = False
     name = "twang"
     summary = "ruler twanged over a desk edge (Selfridge et al., AES 2022)"
     table = TWANG_TABLE

@@ -72,7 +72,7 @@ def spectrogram_levels(samples: np.ndarray, sample_rate: float, width: int) -> d
 def mode_rows(model: Any, resolved: Any, sample_rate: float) -> list[dict[str, Any]]:
     """The modes the model synthesises, as JSON rows (``error_cents`` for the reference models)."""
     modes = model.describe(resolved, sample_rate=sample_rate)
-    errors = model.errors_cents(resolved, sample_rate=sample_rate) if hasattr(model, "errors_cents") else None
+    errors = model.errors_cents(resolved, sample_rate=sample_rate) if model.reports_reference_errors else None
     rows = []
     for k, mode in enumerate(modes):
         row = {key: (json_number(v) if isinstance(v, float) else v) for key, v in mode.to_json().items()}
