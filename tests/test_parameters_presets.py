@@ -200,3 +200,14 @@ def test_a_typed_record_is_checked_against_its_table():
     for record in (WrongType, WrongOrder):
         with pytest.raises(TypeError):
             ParameterTable("x", rows, record=record)
+
+
+def test_a_material_row_tells_the_page_what_each_choice_sets():
+    from barsynth.models import get_model
+    from barsynth.physics import material
+
+    row = next(r for r in get_model("banded").table.to_json() if r["name"] == "material")
+    steel = material("steel")
+    assert row["sets"]["names"] == ["youngs_modulus_pa", "density_kg_m3"]
+    assert row["sets"]["values"]["steel"] == [steel.youngs_modulus_pa, steel.density_kg_m3]
+    assert "custom" not in row["sets"]["values"]

@@ -634,81 +634,26 @@ def assert_active(page: Page, name: str) -> None:
     assert "no effect" not in state["title"] and all("no effect" not in t for t in state["titles"])
 
 
-def test_the_bow_settings_of_banded_are_greyed_out_unless_it_is_bowed(browser, studio, shots):
-    """banded's own table: bow_force_n acts only under excitation = bow (once its row says so)."""
-    entry = next(m for m in json.load(urllib.request.urlopen(studio.url + "api/models", timeout=10))["models"]
-                 if m["name"] == "banded")
-    row = next(r for r in entry["parameters"] if r["name"] == "bow_force_n")
-    if not row["when"]:
-        pytest.skip("banded's bow_force_n row declares no `when` yet (the models are being given theirs); "
-                    "test_a_control_is_greyed_out_while_its_when_does_not_hold covers the page with a table that has one")
-    assert row["when"] == {"excitation": ["bow"]}
+def test_a_control_is_greyed_out_while_its_when_does_not_hold(browser, studio, shots):
+    """banded's own table: the bow's rows act only under excitation = bow, frequency_hz only under
+    tuning = ratios, the bar's size and material only under tuning = physics."""
     errors: list[str] = []
     context, page = open_studio(browser, studio.url + "?model=banded", errors)
     pictures_of(page, "banded")
-    assert_greyed(page, "bow_force_n", "excitation = bow")
-    page.select_option("#param-excitation", "bow")
-    assert_active(page, "bow_force_n")
-    shots(page, "07-banded-bowed")
-    page.select_option("#param-excitation", "strike")
-    assert_greyed(page, "bow_force_n", "excitation = bow")
-    assert errors == [] and page.evaluate("() => studio.errors") == []
-    context.close()
-
-
-def with_when_and_material(page: Page) -> None:
-    """Give banded's table, as the page receives it, the "when" of rows being given theirs
-    (bow_force_n under excitation = bow, frequency_hz under tuning = ratios) and a material
-    choice padded to 20 values; the page's requests go to the server without the material
-    (which banded's real table does not know yet)."""
-    from barsynth.models.shared import material_parameter
-
-    material = material_parameter().to_json()
-    material["choices"] += [f"test-material-{k}" for k in range(20 - len(material["choices"]))]
-
-    def models(route) -> None:
-        answer = route.fetch().json()
-        for entry in answer["models"]:
-            if entry["name"] == "banded":
-                for row in entry["parameters"]:
-                    if row["name"] == "bow_force_n":
-                        row["when"] = {"excitation": ["bow"]}
-                    elif row["name"] == "frequency_hz":
-                        row["when"] = {"tuning": ["ratios"]}
-                entry["parameters"].insert(1, material)
-        route.fulfill(json=answer)
-
-    def without_material(route) -> None:
-        body = json.loads(route.request.post_data)
-        body.get("parameters", {}).pop("material", None)
-        route.continue_(post_data=json.dumps(body), headers={**route.request.headers,
-                                                            "content-type": "application/json"})
-
-    page.route(lambda url: url.endswith("/api/models"), models)
-    page.route(lambda url: url.endswith(("/api/picture", "/api/describe")), without_material)
-
-
-def test_a_control_is_greyed_out_while_its_when_does_not_hold(browser, studio, shots):
-    errors: list[str] = []
-    context = browser.new_context(viewport=VIEWPORT)
-    page = context.new_page()
-    watch(page, errors)
-    with_when_and_material(page)
-    page.goto(studio.url + "?model=banded")
-    until(page, "() => window.studio && studio.ready && studio.lastPicture !== null", PICTURE_S, "the first pictures")
-    pictures_of(page, "banded")
 
     # The defaults: struck and tuned by physics, so neither the bow nor the frequency acts.
-    assert page.evaluate("() => studio.inactive") == ["frequency_hz", "bow_force_n"]
+    inactive = page.evaluate("() => studio.inactive")
+    assert {"frequency_hz", "bow_force_n", "mode_ratios", "pluck_displacement_mm"} <= set(inactive)
+    assert not {"material", "length_m", "mallet_hardness", "q"} & set(inactive)
     assert_greyed(page, "bow_force_n", "excitation = bow")
     assert_greyed(page, "frequency_hz", "tuning = ratios")
-    assert_active(page, "bow_velocity_m_s")  # no "when": always acts
+    assert_active(page, "q")  # no "when": always acts
     shots(page, "08-greyed-out")
 
     # Choosing the controlling value brings the control back at once; choosing another greys it again.
     page.select_option("#param-excitation", "bow")
     assert_active(page, "bow_force_n")
-    assert_greyed(page, "frequency_hz", "tuning = ratios")
+    assert_greyed(page, "mallet_hardness", "excitation = strike")
     page.fill("#num-bow_force_n", "5")
     page.press("#num-bow_force_n", "Enter")
     until(page, "() => studio.values.bow_force_n === 5", 10, "bow_force_n typed")
@@ -717,30 +662,54 @@ def test_a_control_is_greyed_out_while_its_when_does_not_hold(browser, studio, s
     assert page.evaluate("() => studio.values.bow_force_n") == 5  # greyed out, not forgotten
     page.select_option("#param-tuning", "ratios")
     assert_active(page, "frequency_hz")
-    assert page.evaluate("() => studio.inactive") == ["bow_force_n"]
+    assert_greyed(page, "length_m", "tuning = physics")
 
     # A preset or the defaults again: the greying follows the values loaded.
     page.select_option("#preset", "")
     until(page, "() => studio.values.tuning === 'physics'", 10, "the defaults")
-    assert page.evaluate("() => studio.inactive") == ["frequency_hz", "bow_force_n"]
+    assert page.evaluate("() => studio.inactive") == inactive
 
     # A link that bows: the link's values are in force from the start.
     page.goto(studio.url + "?model=banded&excitation=bow&tuning=ratios")
     until(page, "() => window.studio && studio.ready", PICTURE_S, "the page from a link")
-    assert page.evaluate("() => studio.inactive") == []
     assert_active(page, "bow_force_n")
+    assert_active(page, "frequency_hz")
+    assert errors == [] and page.evaluate("() => studio.errors") == []
+    context.close()
 
-    # The material: a <select> of 20 values that fits its row like the other choices.
+
+def test_a_material_sets_youngs_modulus_and_density(browser, studio):
+    """The material is a <select> like the other choices; choosing one shows its E and rho, and the
+    server takes the settings (no refusal); moving E by hand turns it back to custom."""
+    from barsynth.physics import material, materials
+
+    errors: list[str] = []
+    context, page = open_studio(browser, studio.url + "?model=banded", errors)
+    pictures_of(page, "banded")
     select = page.locator("#param-material")
     assert select.evaluate("(s) => s.tagName") == "SELECT"
-    assert select.locator("option").count() == 20
+    assert select.locator("option").count() == 1 + len(materials())
     expect(select).to_have_value("custom")
     box, row = select.bounding_box(), page.locator('#controls .param[data-name="material"]').bounding_box()
     side = page.locator("#side").bounding_box()
     assert row["height"] < 40 and box["x"] + box["width"] <= side["x"] + side["width"]
     tuning = page.locator("#param-tuning").bounding_box()
     assert abs(box["x"] - tuning["x"]) < 1 and abs(box["width"] - tuning["width"]) < 1
+
+    steel = material("steel")
     page.select_option("#param-material", "steel")
     until(page, "() => studio.values.material === 'steel'", 10, "the material chosen")
+    assert page.evaluate("() => [studio.values.youngs_modulus_pa, studio.values.density_kg_m3]") == [
+        steel.youngs_modulus_pa, steel.density_kg_m3]
+    assert float(page.input_value("#num-youngs_modulus_pa")) == pytest.approx(steel.youngs_modulus_pa)
+    until(page, "() => studio.lastPicture.values && studio.lastPicture.values.material === 'steel'", PICTURE_S,
+          "the steel bar's pictures")
+    page.fill("#num-youngs_modulus_pa", "1e11")
+    page.press("#num-youngs_modulus_pa", "Enter")
+    until(page, "() => studio.values.material === 'custom'", 10, "the material back to custom")
+    expect(select).to_have_value("custom")
+    until(page, "() => studio.lastPicture.values.material === 'custom'", PICTURE_S, "the custom bar's pictures")
     assert errors == [] and page.evaluate("() => studio.errors") == []
     context.close()
+
+

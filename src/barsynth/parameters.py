@@ -128,7 +128,10 @@ class Parameter:
             "choices": list(self.choices) if self.kind == CHOICE else None,
             "max_items": self.max_items if self.kind == FLOATS else None,
             "when": {name: list(values) for name, values in self.when} or None,
-            "sets": list(self.sets.names) if self.sets is not None else None,
+            "sets": None if self.sets is None else {
+                "names": list(self.sets.names),
+                "values": {c: list(self.sets.values(c, self.default).values()) for c in self.choices
+                           if c != self.default}},
         }
 
     def acts_under(self, resolved: Any) -> bool:
@@ -382,6 +385,11 @@ class ParameterTable:
         chosen = self.names if names is None else names
         return [(name, self[name].when_text()) for name in chosen
                 if not self[name].acts_under(resolved)]
+
+    def changed(self, resolved: Any, values: Mapping[str, Any]) -> Any:
+        """``resolved`` with ``values`` changed on top (a material chosen now sets E and rho; an E
+        given now turns the material back to custom), as a new record."""
+        return self.resolve(self.as_dict(resolved), values)
 
     def as_dict(self, resolved: Any) -> dict[str, Any]:
         """The resolved dataclass as a plain ordered dict."""

@@ -106,8 +106,7 @@ class Voice:
     def set_parameters(self, **values: Any) -> None:
         """Change parameters (validated, merged with the current ones); the sound follows
         without a click. A refused change changes nothing."""
-        table = self.model.table
-        new = resolve_parameters(self.model, {**table.as_dict(self._params), **values})
+        new = self.model.table.changed(self._params, values)
         old, self._params = self._params, new
         try:
             self._update(old)

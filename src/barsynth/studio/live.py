@@ -73,8 +73,7 @@ def _rehearse(session: Stream, values: dict) -> None:
     model, voice = session.model, session.voice
     if model is None or voice is None:
         return
-    merged = {**model.table.as_dict(voice.parameters), **values}
-    model.voice(merged, sample_rate=session.sample_rate)
+    model.voice(model.table.changed(voice.parameters, values), sample_rate=session.sample_rate)
 
 
 async def play(socket: Any, session: Stream) -> None:

@@ -184,10 +184,30 @@ function rowOf(name) {
 // live sound and redraw the pictures (onChange).
 function change(name, v) {
   clearMessage();
-  current.values[name] = v;
+  const changes = [[name, v], ...setsAlong(name, v)];
+  for (const [n, value] of changes) {
+    current.values[n] = value;
+    if (n !== name && controls.has(n)) controls.get(n).show(value);
+  }
   studio.values = { ...current.values };
-  if (controllers.has(name)) greyOut();
-  changed(name, v);
+  if (changes.some(([n]) => controllers.has(n))) greyOut();
+  for (const [n, value] of changes) changed(n, value);
+}
+
+// What else a change sets: a material chosen sets the rows its "sets" names (Young's modulus,
+// density) to its values; one of those moved by hand turns the material back to its default
+// ("custom"), as the server's resolve does.
+function setsAlong(name, v) {
+  const along = [];
+  const row = rowOf(name);
+  const values = row && row.sets ? row.sets.values[v] : undefined;
+  if (values) row.sets.names.forEach((n, i) => along.push([n, values[i]]));
+  for (const other of current.model.parameters) {
+    if (other.sets && other.sets.names.includes(name) && !same(current.values[other.name], other.default)) {
+      along.push([other.name, other.default]);
+    }
+  }
+  return along;
 }
 
 // A typed value: taken when the table allows it; otherwise sent as typed for the server's
