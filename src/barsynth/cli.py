@@ -242,23 +242,27 @@ def _model(name: str):
 
 def _resolve(model, preset: str | None, assignments: tuple[str, ...], *, warn_inactive: bool = True):
     """The model's parameters from a preset (shipped, or a FILE.toml) and the --set values on top.
-    Each parameter the user gave (by --set or in their own preset file, not a shipped preset's)
-    that has no effect under the result gets one warning line on stderr."""
+
+    Each parameter the user gave that has no effect under the result gets one warning line on
+    stderr: every --set, and each value of their own preset file that differs from the default
+    (the studio saves every parameter); a shipped preset's values are not the user's."""
     from .parameters import parse_assignments
     from .presets import preset_file_parameters, preset_parameters
 
+    table = model.table
+    own_file: dict[str, Any] = {}
     layers = []
-    given: list[str] = []
     if preset is not None and preset.lower().endswith(".toml"):
-        layers.append(preset_file_parameters(model.name, preset))
-        given += layers[-1]
+        own_file = preset_file_parameters(model.name, preset)
+        layers.append(own_file)
     elif preset is not None:
         layers.append(preset_parameters(model.name, preset))
-    layers.append(parse_assignments(assignments))
-    given += layers[-1]
-    resolved = model.table.resolve(*layers)
+    assigned = parse_assignments(assignments)
+    layers.append(assigned)
+    resolved = table.resolve(*layers)
     if warn_inactive:
-        for name, when in model.table.inactive(resolved, dict.fromkeys(given)):
+        given = [name for name, value in table.validate(own_file).items() if value != table[name].default]
+        for name, when in table.inactive(resolved, dict.fromkeys([*given, *assigned])):
             _warn(f"{name} has no effect unless {when}")
     return resolved
 
@@ -296,7 +300,7 @@ def params(model_name: str, as_json: bool, markdown: bool) -> None:
 
     width = max(60, min(100, shutil.get_terminal_size().columns))
     indent = " " * 28
-    click.echo(f"{model.name}: {model.summary}")
+    click.echo(textwrap.fill(f"{model.name}: {model.summary}", width, subsequent_indent="  "))
     for p in model.table:
         # a long range (a material's dozen choices) wraps under itself, as does the doc
         head = f"  {p.name:<24} {_shown(p.default):>10}  "
