@@ -700,3 +700,20 @@ def test_output_dash_to_a_terminal_is_refused(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.decode().count("\n") == 1 and "parameter output = - is standard output" in proc.stderr.decode()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_auto_ends_at_the_same_sample_whatever_the_block_sizes(monkeypatch):
+    from barsynth.models import rendering
+
+    def auto(name, settings):
+        return get_model(name).render(settings, duration_s="auto", sample_rate=44100, normalize=False,
+                                      dtype=np.float64)
+
+    cases = [("banded", {}), ("twang", {"q": 60.0}), ("banded", {"excitation": "bow", "bow_duration_s": 0.3})]
+    usual = [auto(*case) for case in cases]
+    monkeypatch.setattr(rendering, "MAX_BLOCK_S", 0.003)  # blocks of at most 132 samples
+    monkeypatch.setattr(rendering, "BLOCK_WALL_S", 1e-9)
+    for case, x in zip(cases, usual):
+        y = auto(*case)
+        assert np.array_equal(x, y)
+        assert round(x.size / 441) == x.size / 441  # a whole number of 10 ms hops

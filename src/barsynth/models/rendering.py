@@ -21,14 +21,16 @@ NORMALIZE_PEAK_DBFS = -1.0
 MAX_BLOCK_SAMPLES = int(MAX_DURATION_S * MAX_SAMPLE_RATE)  # the longest render at the highest rate
 
 # duration_s="auto": render until the sound has fallen AUTO_QUIET_DB below its peak (the largest
-# magnitude in the last AUTO_WINDOW_S against the largest so far, on the raw samples), after any
-# bow stroke is over, at most AUTO_MAX_S; then end with an AUTO_FADE_S raised-cosine fade.
+# magnitude in the last AUTO_WINDOW_S against the largest so far, on the raw samples, tested every
+# AUTO_HOP_S), after any bow stroke is over, at most AUTO_MAX_S; then end with an AUTO_FADE_S
+# raised-cosine fade.
 AUTO = "auto"
 AUTO_QUIET_DB = 90.0
 AUTO_WINDOW_S = 0.05
 AUTO_MAX_S = 60.0
 AUTO_FADE_S = 0.02
 AUTO_SILENT_S = 1.0  # a voice that gives only zeros this long (after any bow) is done
+AUTO_HOP_S = 0.01  # the test is made every 10 ms of sound, so the length is a whole number of hops
 # Renders run in blocks so a render can be interrupted (Ctrl-C) and watched: each block aims at
 # BLOCK_WALL_S of computing time, between MIN_BLOCK_SAMPLES and MAX_BLOCK_S of sound. The voices
 # give the same samples for any split into blocks (each model's tests), so the sound does not
@@ -203,18 +205,25 @@ def _render_until_quiet(voice: Any) -> np.ndarray:
     # a bowed voice sustains while its bow touches the bar: wait until it is lifted
     bow = getattr(voice, "_bow", None)
     lifted_at = int(getattr(bow, "lifted_at", 0))
-    peak, done, level = 0.0, 0, 0.0
+    hop = max(1, int(round(AUTO_HOP_S * rate)))
+    peak, level, checked, done, stop = 0.0, 0.0, 0, 0, None
     for start, block in _blocks(voice, cap):
         done = start + block.size
         samples[start:done] = block
-        if block.size:
-            peak = max(peak, float(np.max(block)), -float(np.min(block)))
-        last = samples[max(0, done - window):done]
-        level = max(float(np.max(last)), -float(np.min(last))) if last.size else 0.0
-        below = 20.0 * np.log10(level / peak) if level > 0.0 and peak > 0.0 else None
-        _report(done, None, rate, below)
-        if done >= lifted_at + window and (
-                (peak > 0.0 and level <= quiet * peak) or (peak == 0.0 and done >= lifted_at + AUTO_SILENT_S * rate)):
+        # the test at every hop from the start, in order: where the sound ends does not depend
+        # on the sizes of the blocks (which follow the computer's speed)
+        while stop is None and checked + hop <= done:
+            new = samples[checked:checked + hop]
+            peak = max(peak, float(np.max(new)), -float(np.min(new)))
+            checked += hop
+            last = samples[max(0, checked - window):checked]
+            level = max(float(np.max(last)), -float(np.min(last)))
+            if checked >= lifted_at + window and ((peak > 0.0 and level <= quiet * peak) or (
+                    peak == 0.0 and checked >= lifted_at + AUTO_SILENT_S * rate)):
+                stop = checked
+        _report(done, None, rate, 20.0 * np.log10(level / peak) if level > 0.0 and peak > 0.0 else None)
+        if stop is not None:
+            done = stop
             break
     else:
         still_bowed = done < lifted_at
