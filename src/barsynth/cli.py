@@ -2,7 +2,10 @@
 
 Every bad input (unknown model, preset or parameter, a value out of range, an
 unreadable file) ends in one line on stderr naming the parameter, the value, the
-allowed range and the unit, exit status 2, and no file written.
+allowed range and the unit, exit status 2, and no file written. Ctrl-C ends in one line
+(``barsynth: interrupted; nothing written`` during a render) and exit status 130, and no file
+(not even a temporary one). Warnings (a parameter given without effect, ``--duration auto``
+at its cap) are one line each on stderr; a progress line appears only when stderr is a terminal.
 Heavy modules are imported inside the commands, so ``barsynth --help`` is quick.
 """
 
