@@ -432,3 +432,288 @@ def test_tune_undercut_finds_the_depth_and_says_how_to_hear_it():
 ])
 def test_tune_undercut_bad_input(args, needles):
     assert_one_line_error(run("tune-undercut", *args), *needles)
+
+
+# -- the command line as users expect it: auto duration, Ctrl-C, progress, warnings, -o - ---------
+def _every_preset():
+    from barsynth.presets import preset_names
+
+    return [(m, p) for m in model_names() for p in preset_names(m)]
+
+
+def _db(ratio: float) -> float:
+    return 20.0 * math.log10(ratio) if ratio > 0 else -math.inf
+
+
+@pytest.mark.parametrize("model_name,preset", _every_preset())
+def test_auto_duration_ends_every_preset_quietly_and_without_a_click(model_name, preset):
+    import warnings
+
+    from barsynth.models.rendering import AUTO_FADE_S, AUTO_MAX_S, NeverQuietWarning
+    from barsynth.presets import preset_parameters
+
+    rate = 48000
+    model = get_model(model_name)
+    resolved = model.table.resolve(preset_parameters(model_name, preset))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NeverQuietWarning)  # (twang steel-30cm reaches the cap at ~87 dB)
+        x = model.render(resolved, duration_s="auto", sample_rate=rate, normalize=False, dtype=np.float64)
+    assert 0 < x.size <= AUTO_MAX_S * rate
+    peak = np.max(np.abs(x))
+    assert _db(np.max(np.abs(x[-rate // 100:])) / peak) <= -90.0  # the last 10 ms
+    assert x[-1] == 0.0
+    # the fade is a raised cosine over the very samples a fixed duration of the same length gives
+    plain = model.render(resolved, duration_s=x.size / rate, sample_rate=rate, normalize=False, dtype=np.float64)
+    n = int(round(AUTO_FADE_S * rate))
+    fade = 0.5 * (1.0 + np.cos(np.pi * np.arange(1, n + 1) / n))
+    np.testing.assert_array_equal(x[:-n], plain[:-n])
+    np.testing.assert_allclose(x[-n:], plain[-n:] * fade, rtol=1e-12, atol=0)
+    assert np.max(np.abs(np.diff(x[-n:]))) <= 2.0 * np.max(np.abs(plain[-n:]))  # no step beyond the sound's own
+
+
+@pytest.mark.parametrize("model_name", ["banded", "fd"])
+def test_auto_waits_for_the_bow_to_be_lifted_then_for_the_decay(model_name):
+    from barsynth.dsp.bow_stroke import LIFT_DELAY_S
+
+    rate = 48000
+    settings = {"excitation": "bow", "bow_duration_s": 2.5, "bow_ramp_ms": 50.0}
+    x = get_model(model_name).render(settings, duration_s="auto", sample_rate=rate, normalize=False,
+                                     dtype=np.float64)
+    lifted_s = 2.5 + 2 * 0.05 + LIFT_DELAY_S
+    assert x.size / rate >= lifted_s
+    peak = np.max(np.abs(x))
+    assert _db(np.max(np.abs(x[-rate // 20:])) / peak) <= -90.0 and x[-1] == 0.0
+    # while the bow moves the bar sounds: the second before it slows is far above -90 dB
+    assert _db(np.max(np.abs(x[int(1.5 * rate):int(2.5 * rate)])) / peak) > -20.0
+
+
+def test_auto_stops_at_the_cap_with_one_warning_line(tmp_path):
+    from barsynth.models.rendering import AUTO_MAX_S, NeverQuietWarning
+
+    with pytest.warns(NeverQuietWarning, match="cap of 60 s"):
+        x = get_model("banded").render({"tuning": "ratios", "mode_t60s_s": (120.0,)}, duration_s="auto",
+                                       sample_rate=8000, dtype=np.float64)
+    assert x.size == AUTO_MAX_S * 8000 and x[-1] == 0.0
+    out = tmp_path / "long.wav"
+    r = run("render", "banded", "--set", "tuning=ratios", "--set", "mode_t60s_s=120", "--sample-rate", "8000",
+            "-o", str(out))
+    assert r.exit_code == 0
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("barsynth: warning: duration auto stopped at its cap of 60 s")
+    assert soundfile.info(out).frames == 60 * 8000
+    r = run("render", "banded", "--set", "excitation=bow", "--set", "bow_duration_s=100", "--sample-rate", "8000",
+            "-o", str(out))
+    assert r.stderr.count("\n") == 1 and "the bow is still on the bar" in r.stderr
+
+
+def test_render_defaults_to_auto_and_says_how_long(tmp_path):
+    out = tmp_path / "marimba.wav"
+    r = run("render", "banded", "--preset", "marimba", "-o", str(out))
+    assert r.exit_code == 0 and r.stderr == ""
+    x, rate = soundfile.read(out)
+    assert 0.5 < x.size / rate < 60.0 and x[-1] == 0.0
+    assert f"(auto: {x.size / rate:.2f} s at 48000 Hz)" in r.stdout
+    assert np.max(np.abs(x)) == pytest.approx(10 ** (-1 / 20), abs=1e-4)
+    assert run("render", "banded", "--duration", "AUTO", "-o", str(out)).exit_code == 0
+
+
+@pytest.mark.parametrize("value", ["soon", "0", "-1", "601"])
+def test_a_bad_duration_names_auto_among_the_allowed(tmp_path, value):
+    assert_one_line_error(run("render", "banded", "--duration", value, "-o", str(tmp_path / "x.wav")),
+                          "duration_s", "auto", "600 s")
+    assert list(tmp_path.iterdir()) == []
+
+
+def _cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process's CPU time from /proc")
+def test_ctrl_c_stops_a_long_render_with_one_line_and_no_file(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "long.wav"
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    # a 10-minute finite-difference bar: over a minute of computing on any machine
+    proc = subprocess.Popen([sys.executable, "-m", "barsynth", "render", "fd", "--set", "points=200",
+                             "--duration", "600", "-o", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    try:
+        deadline = time.monotonic() + 120.0
+        # past start-up (imports, the model, numba's cache: ~2 s of CPU) and into the blocks
+        while proc.poll() is None and _cpu_seconds(proc.pid) < 3.0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.communicate()
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=20)  # generous: a loaded machine
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130
+    assert stderr.decode() == "barsynth: interrupted; nothing written\n" and stdout == b""
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interrupted_write_leaves_no_temporary_file(tmp_path):
+    from barsynth.cli import _write_all
+
+    def write(tmp):
+        Path(tmp).write_bytes(b"half a file")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        _write_all([(tmp_path / "a.wav", write)])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_progress_shows_on_a_terminal_only(tmp_path, monkeypatch):
+    import barsynth.cli as cli
+
+    out = tmp_path / "x.wav"
+    quiet = run("render", "fd", "--preset", "ruler", "--duration", "0.5", "-o", str(out))
+    assert quiet.exit_code == 0 and quiet.stderr == ""  # not a terminal: nothing
+    monkeypatch.setattr(cli, "_is_terminal", lambda stream: True)
+    monkeypatch.setattr(cli, "PROGRESS_AFTER_S", 0.0)
+    monkeypatch.setattr(cli, "PROGRESS_EVERY_S", 0.0)
+    shown = run("render", "fd", "--preset", "ruler", "--duration", "0.5", "-o", str(out))
+    assert shown.exit_code == 0
+    assert "\rbarsynth: rendering 0.5 of 0.5 s (100 %)\x1b[K" in shown.stderr
+    assert shown.stderr.endswith("\r\x1b[K")  # erased when done
+    auto = run("render", "fd", "--preset", "ruler", "-o", str(out))
+    assert "(auto: until 90 dB below its peak, at most 60 s, now" in auto.stderr
+    assert auto.stderr.endswith("\r\x1b[K") and "\n" not in auto.stderr
+
+
+def test_progress_line_redraws_in_place():
+    import io
+
+    from barsynth.cli import _Progress
+
+    stream = io.StringIO()
+    progress = _Progress(stream, terminal=True, after_s=0.0)
+    progress(1.0, 4.0, None)
+    progress.close()
+    assert stream.getvalue() == "\rbarsynth: rendering 1.0 of 4 s (25 %)\x1b[K\r\x1b[K"
+    silent = io.StringIO()
+    off = _Progress(silent, terminal=False, after_s=0.0)
+    off(1.0, 4.0, None)
+    off.close()
+    assert silent.getvalue() == ""
+
+
+def test_a_parameter_without_effect_gets_one_warning_and_still_renders(tmp_path):
+    out = tmp_path / "x.wav"
+    r = run("render", "banded", "--set", "bow_force_n=5", "--duration", "0.2", "-o", str(out))
+    assert r.exit_code == 0 and soundfile.info(out).frames == int(0.2 * 48000)
+    assert r.stderr == "barsynth: warning: bow_force_n has no effect unless excitation = bow\n"
+    r = run("render", "banded", "--set", "excitation=bow", "--set", "bow_force_n=5", "--duration", "0.2",
+            "-o", str(out))
+    assert r.exit_code == 0 and r.stderr == ""
+    assert run("render", "banded", "--preset", "marimba", "--duration", "0.2", "-o", str(out)).stderr == ""
+    # a preset file of one's own: its values that differ from the defaults count as given
+    mine = tmp_path / "mine.toml"
+    mine.write_text('[parameters]\ntuning = "ratios"\nlength_m = 0.5\nbow_force_n = 3.0\nq = 200.0\n')
+    r = run("describe", "banded", "--preset", str(mine))
+    assert r.exit_code == 0
+    assert r.stderr == "barsynth: warning: length_m has no effect unless tuning = physics\n"
+
+
+def test_material_in_params_set_and_materials(tmp_path):
+    from barsynth.physics import materials as table
+
+    names = list(table())
+    text = run("params", "banded").stdout
+    assert all(len(line) <= 100 for line in text.splitlines())
+    block = text[text.index("  material "):text.index("  length_m ")]
+    assert all(name in block for name in names)
+    d = json.loads(run("describe", "banded", "--set", "material=steel", "--json").stdout)
+    assert d["parameters"]["youngs_modulus_pa"] == 2e11 and d["parameters"]["density_kg_m3"] == 7850
+    out = tmp_path / "steel.wav"
+    assert run("render", "twang", "--set", "material=steel", "--duration", "0.2", "-o", str(out)).exit_code == 0
+    listed = run("materials").stdout
+    for name, mat in table().items():
+        assert f"{name:<16} {mat.youngs_modulus_pa:>9.3g}" in listed
+    data = json.loads(run("materials", "--json").stdout)
+    assert [m["name"] for m in data] == names
+    for entry in data:
+        mat = table()[entry["name"]]
+        assert entry == {"name": mat.name, "youngs_modulus_pa": mat.youngs_modulus_pa,
+                         "density_kg_m3": mat.density_kg_m3, "typical_q": mat.typical_q,
+                         "description": mat.description, "source": mat.source}
+
+
+def test_render_help_lists_every_model_with_its_summary():
+    text = " ".join(run("render", "--help").stdout.split())
+    for name in model_names():
+        assert f"{name} {' '.join(get_model(name).summary.split())}" in text
+
+
+def test_presets_json_lists_each_models_presets_with_descriptions():
+    from barsynth.presets import load_preset, preset_names
+
+    data = json.loads(run("presets", "--json").stdout)
+    assert list(data) == list(model_names())
+    for name, listed in data.items():
+        assert [p["name"] for p in listed] == list(preset_names(name))
+        for p in listed:
+            assert p["description"] == load_preset(name, p["name"])["preset"]["description"]
+            assert p["parameters"] == load_preset(name, p["name"])["parameters"]
+    assert list(json.loads(run("presets", "fd", "--json").stdout)) == ["fd"]
+
+
+def _barsynth(*args: str, **kwargs):
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    return subprocess.run([sys.executable, "-m", "barsynth", *args], env=env, **kwargs)
+
+
+def test_output_dash_writes_the_wav_to_stdout_and_nothing_else(tmp_path):
+    import io
+
+    proc = _barsynth("render", "banded", "--preset", "marimba", "--duration", "0.5", "-o", "-",
+                     capture_output=True, cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stderr == b""
+    x, rate = soundfile.read(io.BytesIO(proc.stdout))
+    assert rate == 48000 and x.size == 24000
+    assert soundfile.info(io.BytesIO(proc.stdout)).subtype == "PCM_24"
+    assert run("render", "banded", "--preset", "marimba", "--duration", "0.5", "-o", str(tmp_path / "m.wav")
+               ).exit_code == 0
+    assert np.array_equal(soundfile.read(tmp_path / "m.wav")[0], x)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.wav"]  # no file called -
+    auto = _barsynth("render", "twang", "--subtype", "FLOAT", "-o", "-", capture_output=True)
+    y, _ = soundfile.read(io.BytesIO(auto.stdout))
+    assert auto.returncode == 0 and y[-1] == 0.0
+
+
+def test_output_dash_to_a_terminal_is_refused(tmp_path):
+    import pty
+
+    leader, follower = pty.openpty()
+    try:
+        proc = _barsynth("render", "twang", "--duration", "0.2", "-o", "-", stdout=follower,
+                         stderr=subprocess.PIPE, cwd=tmp_path, timeout=60)
+    finally:
+        os.close(follower)
+        os.close(leader)
+    assert proc.returncode == 2
+    assert proc.stderr.decode().count("\n") == 1 and "parameter output = - is standard output" in proc.stderr.decode()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_auto_ends_at_the_same_sample_whatever_the_block_sizes(monkeypatch):
+    from barsynth.models import rendering
+
+    def auto(name, settings):
+        return get_model(name).render(settings, duration_s="auto", sample_rate=44100, normalize=False,
+                                      dtype=np.float64)
+
+    cases = [("banded", {}), ("twang", {"q": 60.0}), ("banded", {"excitation": "bow", "bow_duration_s": 0.3})]
+    usual = [auto(*case) for case in cases]
+    monkeypatch.setattr(rendering, "MAX_BLOCK_S", 0.003)  # blocks of at most 132 samples
+    monkeypatch.setattr(rendering, "BLOCK_WALL_S", 1e-9)
+    for case, x in zip(cases, usual):
+        y = auto(*case)
+        assert np.array_equal(x, y)
+        assert round(x.size / 441) == x.size / 441  # a whole number of 10 ms hops

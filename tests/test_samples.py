@@ -88,10 +88,13 @@ def test_long_values_and_many_settings_are_shortened():
 # -- every path --------------------------------------------------------------------------------
 def test_the_cli_refuses_to_write_a_blow_up(tmp_path, exploding):
     out, plot = tmp_path / "x.wav", tmp_path / "x.png"
-    result = CliRunner().invoke(main, ["render", "banded", "--set", "frequency_hz=300", "--duration", "0.5",
-                                       "--raw", "--subtype", "FLOAT", "--plot", str(plot), "-o", str(out)])
+    # (tuning=ratios: frequency_hz alone would also get a warning line, as it does nothing under tuning=physics)
+    result = CliRunner().invoke(main, ["render", "banded", "--set", "tuning=ratios", "--set", "frequency_hz=300",
+                                       "--duration", "0.5", "--raw", "--subtype", "FLOAT", "--plot", str(plot),
+                                       "-o", str(out)])
     assert result.exit_code == 2
-    assert_the_line(result.stderr, "barsynth: error: model banded with frequency_hz=300 gives ", "from 0.1 s")
+    assert_the_line(result.stderr, "barsynth: error: model banded with tuning=ratios, frequency_hz=300 gives ",
+                    "from 0.1 s")
     assert not out.exists() and not plot.exists()
 
 

@@ -2,7 +2,10 @@
 
 Every bad input (unknown model, preset or parameter, a value out of range, an
 unreadable file) ends in one line on stderr naming the parameter, the value, the
-allowed range and the unit, exit status 2, and no file written.
+allowed range and the unit, exit status 2, and no file written. Ctrl-C ends in one line
+(``barsynth: interrupted; nothing written`` during a render) and exit status 130, and no file
+(not even a temporary one). Warnings (a parameter given without effect, ``--duration auto``
+at its cap) are one line each on stderr; a progress line appears only when stderr is a terminal.
 Heavy modules are imported inside the commands, so ``barsynth --help`` is quick.
 """
 
@@ -23,6 +26,13 @@ from .checks import show_text
 from .errors import BarsynthError, ParameterError
 
 
+INTERRUPTED_STATUS = 130  # 128 + SIGINT, as shells report a process that Ctrl-C stopped
+
+
+class _Interrupted(Exception):
+    """Ctrl-C: one line (this text) on stderr and exit status 130."""
+
+
 def _fail(message: str) -> None:
     """One line on stderr (any run of more than 80 characters without a space, such as a value
     click quotes, shortened: nothing a user typed is echoed at length), then exit status 2."""
@@ -33,17 +43,39 @@ def _fail(message: str) -> None:
     sys.exit(2)
 
 
+def _interrupted(message: str) -> None:
+    """One line on stderr, then exit status 130."""
+    if sys.stderr.isatty():  # over the terminal's ^C (and any progress line)
+        sys.stderr.write("\r\033[K")
+    click.echo(f"barsynth: {message}", err=True)
+    sys.exit(INTERRUPTED_STATUS)
+
+
+def _warn(message: str) -> None:
+    click.echo(f"barsynth: warning: {message}", err=True)
+
+
 class _Group(click.Group):
     """One line and exit status 2 for every refusal: barsynth's own errors, click's
     usage errors (a bad option value, a missing argument) and failures to write."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:  # before click turns it into Abort (after a blank line)
+            raise _Interrupted("interrupted") from None
 
     def main(self, *args: Any, **kwargs: Any) -> Any:
         kwargs["standalone_mode"] = False
         try:
             result = super().main(*args, **kwargs)
+        except _Interrupted as exc:
+            _interrupted(str(exc))
         except click.UsageError as exc:
             _fail(exc.format_message())
-        except click.Abort:
+        except click.Abort as exc:
+            if isinstance(exc.__cause__, KeyboardInterrupt):  # Ctrl-C while click parsed the options
+                _interrupted("interrupted")
             _fail("aborted")
         except BarsynthError as exc:
             _fail(str(exc))
@@ -167,34 +199,75 @@ def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, bc,
 
 
 @main.command()
-def materials() -> None:
-    """The materials table (E, rho, typical Q, source)."""
+@click.option("--json", "as_json", is_flag=True, help="Print JSON: every field of every material.")
+def materials(as_json: bool) -> None:
+    """The materials table: E, rho, typical Q, what each entry is and its source.
+
+    Any model that takes Young's modulus and density takes one by name:
+    --set material=steel (see `barsynth params MODEL`).
+    """
+    from dataclasses import asdict
+
     from .physics import materials as all_materials
 
-    for name, mat in all_materials().items():
+    table = all_materials()
+    if as_json:
+        _json_out([asdict(mat) for mat in table.values()])
+        return
+    import textwrap
+
+    click.echo(f"{'material':<16} {'E (Pa)':>9}  {'rho (kg/m^3)':>12}  {'Q':>6}")
+    for name, mat in table.items():
         q = f"{mat.typical_q:g}" if mat.typical_q else "-"
-        click.echo(f"{name:<16} E = {mat.youngs_modulus_pa:>9.3g} Pa  "
-                   f"rho = {mat.density_kg_m3:>6.0f} kg/m^3  Q ~ {q:<5}  ({mat.source})")
+        click.echo(f"{name:<16} {mat.youngs_modulus_pa:>9.3g}  {mat.density_kg_m3:>12.0f}  {q:>6}")
+        click.echo(textwrap.fill(f"{mat.description.rstrip('.')}. Source: {mat.source}", 100,
+                                 initial_indent=" " * 4, subsequent_indent=" " * 4, break_on_hyphens=False))
 
 
 # -- models -----------------------------------------------------------------------------
+class _ModelCommand(click.Command):
+    """A command on a MODEL: its --help ends with the models, each with its one-line summary
+    (imported only when the help is asked for)."""
+
+    def format_epilog(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        from .models import get_model, model_names
+
+        with formatter.section("Models"):
+            formatter.write_dl([(name, get_model(name).summary) for name in model_names()])
+        super().format_epilog(ctx, formatter)
+
+
 def _model(name: str):
     from .models import get_model
 
     return get_model(name)
 
 
-def _resolve(model, preset: str | None, assignments: tuple[str, ...]):
+def _resolve(model, preset: str | None, assignments: tuple[str, ...], *, warn_inactive: bool = True):
+    """The model's parameters from a preset (shipped, or a FILE.toml) and the --set values on top.
+
+    Each parameter the user gave that has no effect under the result gets one warning line on
+    stderr: every --set, and each value of their own preset file that differs from the default
+    (the studio saves every parameter); a shipped preset's values are not the user's."""
     from .parameters import parse_assignments
     from .presets import preset_file_parameters, preset_parameters
 
+    table = model.table
+    own_file: dict[str, Any] = {}
     layers = []
     if preset is not None and preset.lower().endswith(".toml"):
-        layers.append(preset_file_parameters(model.name, preset))
+        own_file = preset_file_parameters(model.name, preset)
+        layers.append(own_file)
     elif preset is not None:
         layers.append(preset_parameters(model.name, preset))
-    layers.append(parse_assignments(assignments))
-    return model.table.resolve(*layers)
+    assigned = parse_assignments(assignments)
+    layers.append(assigned)
+    resolved = table.resolve(*layers)
+    if warn_inactive:
+        given = [name for name, value in table.validate(own_file).items() if value != table[name].default]
+        for name, when in table.inactive(resolved, dict.fromkeys([*given, *assigned])):
+            _warn(f"{name} has no effect unless {when}")
+    return resolved
 
 
 _preset_option = click.option("--preset", "-p", metavar="P", help="Start from a preset (see `barsynth presets`), "
@@ -212,7 +285,7 @@ def _sample_rate(text: str) -> float:
     return check_sample_rate(text)
 
 
-@main.command()
+@main.command(cls=_ModelCommand)
 @click.argument("model_name", metavar="MODEL")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 @click.option("--markdown", is_flag=True, help="Print a Markdown table (the docs are made with it).")
@@ -225,13 +298,24 @@ def params(model_name: str, as_json: bool, markdown: bool) -> None:
     if markdown:
         click.echo(model.table.to_markdown(), nl=False)
         return
-    click.echo(f"{model.name}: {model.summary}")
+    import shutil
+    import textwrap
+
+    width = max(60, min(100, shutil.get_terminal_size().columns))
+    indent = " " * 28
+    click.echo(textwrap.fill(f"{model.name}: {model.summary}", width, subsequent_indent="  "))
     for p in model.table:
-        click.echo(f"  {p.name:<24} {_shown(p.default):>10}  [{p.range_text()}]")
-        click.echo(f"  {'':<24} {p.doc}")
+        # a long range (a material's dozen choices) wraps under itself, as does the doc
+        head = f"  {p.name:<24} {_shown(p.default):>10}  "
+        click.echo(textwrap.fill(f"[{p.range_text()}]", width, initial_indent=head,
+                                 subsequent_indent=" " * (len(head) + 1), break_on_hyphens=False))
+        acts = p.when and not p.doc.startswith(p.when_text())  # (banded's bar rows say it first)
+        doc = p.doc + (f" (acts only when {p.when_text()})" if acts else "")
+        click.echo(textwrap.fill(doc, width, initial_indent=indent, subsequent_indent=indent,
+                                 break_on_hyphens=False))
 
 
-@main.command()
+@main.command(cls=_ModelCommand)
 @click.argument("model_name", metavar="MODEL")
 @_preset_option
 @_set_option
@@ -277,7 +361,7 @@ def _check_writable_dir(path: Path, what: str) -> None:
 
 def _write_all(jobs: list[tuple[Path, Any]]) -> None:
     """Write every ``(path, write(tmp_path))`` job to a temporary file beside its target,
-    then rename them all: a failure anywhere leaves no new or partial file behind.
+    then rename them all: a failure anywhere (or a Ctrl-C) leaves no new or partial file behind.
     A symbolic link is followed (its target is replaced); an existing file keeps its
     permissions, a new one gets the usual 0666 less the umask."""
     from .checks import check_output_file
@@ -298,23 +382,100 @@ def _write_all(jobs: list[tuple[Path, Any]]) -> None:
             write(tmp)
         for tmp, path in temps:
             os.replace(tmp, path)
-    except Exception as exc:
+    except BaseException as exc:  # a Ctrl-C too: no temporary file is left behind
         for tmp, _ in temps:
             if os.path.exists(tmp):
                 os.unlink(tmp)
-        if isinstance(exc, BarsynthError):
+        if isinstance(exc, BarsynthError) or not isinstance(exc, Exception):
             raise
         target = temps[-1][1] if temps else jobs[0][0]
         reason = getattr(exc, "strerror", None) or str(exc).strip().splitlines()[-1]
         raise BarsynthError(f"could not write {show_text(target)}: {reason}; nothing written") from None
 
 
-@main.command()
+PROGRESS_AFTER_S = 2.0  # a render that takes longer than this shows its progress on a terminal
+PROGRESS_EVERY_S = 0.1  # how often the progress line is redrawn
+
+
+def _is_terminal(stream: Any) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):  # no such method, or closed
+        return False
+
+
+class _Progress:
+    """The progress line of a long render, on stderr and only on a terminal (``terminal``
+    forces it either way): shown once the render has taken ``after_s``, redrawn in place at
+    most every PROGRESS_EVERY_S, erased by :meth:`close`. (``after_s``: PROGRESS_AFTER_S.) Called as the render watcher:
+    ``(done_s, total_s, below_peak_db)`` (see models.rendering.watching)."""
+
+    def __init__(self, stream: Any = None, *, terminal: bool | None = None, after_s: float | None = None):
+        import time
+
+        self.stream = sys.stderr if stream is None else stream
+        self.on = _is_terminal(self.stream) if terminal is None else terminal
+        self.clock = time.monotonic
+        self.shown_at = self.clock() + (PROGRESS_AFTER_S if after_s is None else after_s)
+        self.drawn = False
+
+    def __call__(self, done_s: float, total_s: float | None, below_peak_db: float | None) -> None:
+        now = self.clock()
+        if not self.on or now < self.shown_at:
+            return
+        self.shown_at = now + PROGRESS_EVERY_S
+        if total_s is not None:
+            text = f"rendering {done_s:.1f} of {total_s:g} s ({100.0 * done_s / total_s:.0f} %)"
+        else:
+            from .models.rendering import AUTO_MAX_S, AUTO_QUIET_DB
+
+            level = "" if below_peak_db is None else f", now {-below_peak_db:.0f} dB below its peak"
+            text = (f"rendering {done_s:.1f} s (auto: until {AUTO_QUIET_DB:g} dB below its peak, "
+                    f"at most {AUTO_MAX_S:g} s{level})")
+        self.stream.write(f"\rbarsynth: {text}\033[K")
+        self.stream.flush()
+        self.drawn = True
+
+    def close(self) -> None:
+        if self.drawn:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+            self.drawn = False
+
+
+def _render_samples(model, resolved, *, duration: float | str, rate: float, seed: int, raw: bool):
+    """The model's samples, rendered in blocks: a progress line on a terminal, Ctrl-C stops it
+    (nothing is written), and a warning line when ``auto`` stops at its cap."""
+    import warnings
+
+    from .models.rendering import NeverQuietWarning, watching
+
+    progress = _Progress()
+    try:
+        with warnings.catch_warnings(record=True) as caught, watching(progress):
+            warnings.simplefilter("always", NeverQuietWarning)
+            samples = model.render(resolved, duration_s=duration, sample_rate=rate, seed=seed,
+                                   normalize=not raw)
+    except KeyboardInterrupt:
+        raise _Interrupted("interrupted; nothing written") from None
+    finally:
+        progress.close()
+    for warning in caught:
+        if issubclass(warning.category, NeverQuietWarning):
+            _warn(str(warning.message))
+        else:  # anything else, as Python would have shown it
+            warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
+    return samples
+
+
+@main.command(cls=_ModelCommand)
 @click.argument("model_name", metavar="MODEL")
 @_preset_option
 @_set_option
-@click.option("--duration", "duration", default="2.0", show_default=True, metavar="S",
-              help="Duration in seconds.")
+@click.option("--duration", "duration", default="auto", show_default=True, metavar="S|auto",
+              help="Duration in seconds (up to 600), or auto: until the sound has fallen 90 dB below "
+                   "its peak (a bowed sound: after the bow is lifted), at most 60 s, ending with a "
+                   "20 ms fade.")
 @_rate_option
 @click.option("--seed", default=0, show_default=True, type=int, metavar="N", help="Noise seed.")
 @click.option("--raw", is_flag=True, help="Keep the model's own level (no peak normalisation to -1 dBFS).")
@@ -323,44 +484,66 @@ def _write_all(jobs: list[tuple[Path, Any]]) -> None:
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), metavar="PNG",
               help="Also draw a waveform + spectrogram PNG.")
 @click.option("-o", "--output", "output", required=True, metavar="FILE",
-              type=click.Path(dir_okay=False, path_type=Path), help="Audio file to write (.wav, .flac, .ogg).")
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="Audio file to write (.wav, .flac, .ogg), or - for a WAV file on standard output.")
 def render(model_name, preset, assignments, duration, sample_rate, seed, raw, subtype, plot_path, output):
     """Render a sound to an audio file.
+
+    By default the sound lasts until it has died away (--duration auto). A render
+    that takes a while shows its progress on a terminal; Ctrl-C stops it, writes
+    nothing and exits with status 130.
 
     \b
     Examples:
       barsynth render twang --preset steel-30cm -o steel.wav
       barsynth render twang --set q=300 --set vibrato_rate_hz=5 --duration 3 -o wobble.wav
+      barsynth render banded --preset marimba -o - | aplay
     """
     from .audio_io import output_format, output_subtype, write_audio
-    from .models.rendering import check_duration
+    from .models.rendering import AUTO, check_render_duration
 
     model = _model(model_name)
     resolved = _resolve(model, preset, assignments)
     rate = _sample_rate(sample_rate)
-    seconds = check_duration(duration)
-    fmt = output_format(output)
-    _check_writable_dir(output, "output")
+    seconds = check_render_duration(duration)
+    to_stdout = str(output) == "-"
+    if to_stdout:
+        if _is_terminal(sys.stdout):
+            raise ParameterError("parameter output = - is standard output, which is a terminal; allowed: "
+                                 "- only with standard output redirected to a file or a pipe")
+        fmt = "WAV"
+    else:
+        fmt = output_format(output)
+        _check_writable_dir(output, "output")
     if plot_path is not None:
         if plot_path.suffix.lower() != ".png":
             raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
         _check_writable_dir(plot_path, "plot")
     import numpy as np
 
-    file_subtype = output_subtype(fmt, subtype, rate, output.suffix)
-    samples = model.render(resolved, duration_s=seconds, sample_rate=rate, seed=seed,
-                           normalize=not raw)
+    file_subtype = output_subtype(fmt, subtype, rate, output.suffix or ".wav")
+    samples = _render_samples(model, resolved, duration=seconds, rate=rate, seed=seed, raw=raw)
     # (non-finite or exploding samples were refused by the render: models.rendering.check_samples)
     if raw and np.max(np.abs(samples)) > 1.0 and subtype != "FLOAT":
         raise ParameterError("the raw render exceeds full scale; use --subtype FLOAT or drop --raw")
-    jobs = [(output, lambda tmp: write_audio(tmp, samples, rate, fmt=fmt, subtype=file_subtype))]
+    jobs = [] if to_stdout else [(output, lambda tmp: write_audio(tmp, samples, rate, fmt=fmt, subtype=file_subtype))]
     if plot_path is not None:
         from .analysis import plot_sound
 
         title = f"{model.name}{' ' + preset if preset else ''}"
         jobs.append((plot_path, lambda tmp: plot_sound(samples, rate, tmp, title=title)))
     _write_all(jobs)
-    click.echo(f"wrote {output} ({seconds:g} s at {rate:g} Hz)")
+    if to_stdout:  # the sound and nothing else
+        import io
+
+        buffer = io.BytesIO()
+        write_audio(buffer, samples, rate, fmt=fmt, subtype=file_subtype)
+        stdout = click.get_binary_stream("stdout")
+        stdout.write(buffer.getvalue())
+        stdout.flush()
+        return
+    length = f"auto: {samples.size / rate:.2f} s" if seconds == AUTO else f"{seconds:g} s"
+    click.echo(f"wrote {output} ({length} at {rate:g} Hz)")
 
 
 @main.command("tune-undercut")
@@ -440,7 +623,7 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
     from .analysis.bowing import plot_bow_map
 
     model = _model(model_name)
-    resolved = _resolve(model, preset, assignments)
+    resolved = _resolve(model, preset, assignments, warn_inactive=False)  # the map bows whatever is set
     rate = _sample_rate(sample_rate)
     try:
         seconds = float(duration)
@@ -525,16 +708,24 @@ def analyze(path, as_json, max_partials, plot_path):
 
 @main.command()
 @click.argument("model_name", metavar="[MODEL]", required=False)
-def presets(model_name: str | None) -> None:
+@click.option("--json", "as_json", is_flag=True,
+              help="Print JSON: for each model, its presets with description, source and parameters.")
+def presets(model_name: str | None, as_json: bool) -> None:
     """List the presets of one model, or of every model."""
     from .models import model_names
     from .presets import load_preset, preset_names
 
     names = [_model(model_name).name] if model_name else list(model_names())
-    for name in names:
-        for preset in preset_names(name):
-            info = load_preset(name, preset)["preset"]
-            click.echo(f"{name:<8} {preset:<24} {info.get('description', '')}")
+    found = {name: {preset: load_preset(name, preset) for preset in preset_names(name)} for name in names}
+    if as_json:
+        _json_out({name: [{"name": preset, "description": doc["preset"].get("description", ""),
+                           "source": doc["preset"].get("source", ""), "parameters": doc.get("parameters", {})}
+                          for preset, doc in shipped.items()]
+                   for name, shipped in found.items()})
+        return
+    for name, shipped in found.items():
+        for preset, doc in shipped.items():
+            click.echo(f"{name:<8} {preset:<24} {doc['preset'].get('description', '')}")
 
 
 @main.command()
