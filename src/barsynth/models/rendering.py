@@ -21,9 +21,11 @@ NORMALIZE_PEAK_DBFS = -1.0
 MAX_BLOCK_SAMPLES = int(MAX_DURATION_S * MAX_SAMPLE_RATE)  # the longest render at the highest rate
 
 # duration_s="auto": render until the sound has fallen AUTO_QUIET_DB below its peak (the largest
-# magnitude in the last AUTO_WINDOW_S against the largest so far, on the raw samples, tested every
-# AUTO_HOP_S), after any bow stroke is over, at most AUTO_MAX_S; then end with an AUTO_FADE_S
-# raised-cosine fade.
+# magnitude in the last AUTO_WINDOW_S against the largest so far, tested every AUTO_HOP_S), after
+# any bow stroke is over, at most AUTO_MAX_S; then end with an AUTO_FADE_S raised-cosine fade.
+# Both are measured on what can be heard: the samples high-passed at 20 Hz (dsp.biquad). A ruler's
+# sway at a few hertz (the steel ruler's whole-length mode: 9 Hz, T60 97 s) is not heard, and
+# waiting for it would take every such render to the cap.
 AUTO = "auto"
 AUTO_QUIET_DB = 90.0
 AUTO_WINDOW_S = 0.05
@@ -196,6 +198,8 @@ def _blocks(voice: Any, limit: int) -> Iterator[tuple[int, np.ndarray]]:
 
 def _render_until_quiet(voice: Any) -> np.ndarray:
     """The raw samples of ``duration_s="auto"`` (see :func:`render_voice`), faded out."""
+    from ..dsp.biquad import AUDIBLE_FROM_HZ, high_pass, run_biquad
+
     rate = voice.sample_rate
     cap = int(round(AUTO_MAX_S * rate))
     window = max(1, int(round(AUTO_WINDOW_S * rate)))
@@ -206,17 +210,20 @@ def _render_until_quiet(voice: Any) -> np.ndarray:
     bow = getattr(voice, "_bow", None)
     lifted_at = int(getattr(bow, "lifted_at", 0))
     hop = max(1, int(round(AUTO_HOP_S * rate)))
+    heard = np.empty(cap)  # the samples as heard: high-passed at AUDIBLE_FROM_HZ
+    audible, state = high_pass(AUDIBLE_FROM_HZ, rate), np.zeros(2)
     peak, level, checked, done, stop = 0.0, 0.0, 0, 0, None
     for start, block in _blocks(voice, cap):
         done = start + block.size
         samples[start:done] = block
+        run_biquad(block, audible, state, heard[start:done])
         # the test at every hop from the start, in order: where the sound ends does not depend
         # on the sizes of the blocks (which follow the computer's speed)
         while stop is None and checked + hop <= done:
-            new = samples[checked:checked + hop]
+            new = heard[checked:checked + hop]
             peak = max(peak, float(np.max(new)), -float(np.min(new)))
             checked += hop
-            last = samples[max(0, checked - window):checked]
+            last = heard[max(0, checked - window):checked]
             level = max(float(np.max(last)), -float(np.min(last)))
             if checked >= lifted_at + window and ((peak > 0.0 and level <= quiet * peak) or (
                     peak == 0.0 and checked >= lifted_at + AUTO_SILENT_S * rate)):
