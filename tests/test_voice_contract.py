@@ -364,6 +364,24 @@ def test_a_refused_rate_leaves_the_voice_playing_at_its_old_rate(name, rate):
     assert np.array_equal(mine.process(1000, dtype=np.float64), reference.process(1000, dtype=np.float64))
 
 
+REFUSED_AT_RATE = {"banded": ({"tuning": "ratios", "frequency_hz": 3000.0, "mode_ratios": (1.0,)}, 8000)}
+"""A setting and a valid rate the model itself refuses (its _prepare raises: the only mode above
+a quarter of 8 kHz), so the base must keep the old rate and design."""
+
+
+@pytest.mark.parametrize("name", list(REFUSED_AT_RATE))
+def test_a_rate_the_model_refuses_leaves_the_voice_playing_at_its_old_rate(name):
+    p, rate = REFUSED_AT_RATE[name]
+    mine, reference = (fresh(name, model_settings(name, **p)) for _ in range(2))
+    for voice in (mine, reference):
+        voice.trigger()
+        voice.process(300)
+    with pytest.raises(ParameterError) as info:
+        mine.prepare(rate)
+    assert "\n" not in str(info.value) and mine.sample_rate == RATE
+    assert np.array_equal(mine.process(1000, dtype=np.float64), reference.process(1000, dtype=np.float64))
+
+
 @pytest.mark.parametrize("max_block", [0, -1, 2.5, "x", 10 ** 12])
 @pytest.mark.parametrize("name", MODELS)
 def test_a_refused_block_size_changes_nothing(name, max_block):
@@ -372,6 +390,16 @@ def test_a_refused_block_size_changes_nothing(name, max_block):
         mine.prepare(RATE, max_block)
     assert mine.sample_rate == RATE
     assert np.array_equal(mine.process(1000, dtype=np.float64), reference.process(1000, dtype=np.float64))
+
+
+@pytest.mark.parametrize("name,excitation", CASES)
+def test_silence_before_the_first_trigger_and_after_reset(name, excitation):
+    voice = fresh(name, excited(name, excitation))
+    assert not np.any(voice.process(1000, dtype=np.float64))
+    voice.trigger()
+    assert np.any(voice.process(1000, dtype=np.float64))
+    voice.reset()
+    assert not np.any(voice.process(1000, dtype=np.float64))
 
 
 # -- seeds -----------------------------------------------------------------------------------------
