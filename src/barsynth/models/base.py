@@ -104,8 +104,11 @@ class Voice:
         self._reset()
 
     def set_parameters(self, **values: Any) -> None:
-        """Change parameters (validated, merged with the current ones); the sound follows
-        without a click. A refused change changes nothing."""
+        """Change parameters (validated, on top of the current ones: see
+        :meth:`~barsynth.parameters.ParameterTable.changed`). What a model can glide it glides
+        without a click; a change it cannot glide (a new grid, new loops, a jump of level) is
+        cross-faded by :class:`~barsynth.models.crossfade.CrossfadingVoice`, as the studio plays.
+        A refused change changes nothing."""
         new = self.model.table.changed(self._params, values)
         old, self._params = self._params, new
         try:
