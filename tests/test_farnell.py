@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from barsynth import ParameterError
 from barsynth.models import get_model
-from barsynth.models import farnell_kernel as K
+from barsynth.models.farnell import design
 from barsynth.models.farnell import FARNELL_TABLE, FarnellVoice
 
 MODEL = get_model("farnell")
@@ -21,7 +21,7 @@ RATE = 48000.0
 def traced(params, seconds, *, seed=0, rate=RATE):
     voice = FarnellVoice(params, sample_rate=rate, seed=seed)
     voice.trigger()
-    return voice.process(int(seconds * rate), dtype=np.float64, trace=True)
+    return voice.trace(int(seconds * rate))
 
 
 def test_drive_phasor_glides_18_hz_down_to_f_over_4():
@@ -52,7 +52,7 @@ def test_clamped_envelope_falls_as_c4_and_ends_at_1_5_s():
     window = int(0.05 * RATE)
     assert clamped[int(1.5 * RATE) + 1:].max() == 0.0
     assert clamped[int(1.40 * RATE):int(1.45 * RATE)].max() > 0.0
-    full = sum(K.CLAMPED_GAINS)  # the bank's peak, reached each time the drive passes 0
+    full = sum(design.CLAMPED_GAINS)  # the bank's peak, reached each time the drive passes 0
     for t in (0.1, 0.5, 0.9, 1.2):
         start = int(t * RATE)
         peak = clamped[start:start + window].max()
@@ -70,9 +70,9 @@ def test_free_bands_sit_at_the_free_bar_ratios_after_the_glide():
         spectra.append(np.abs(np.fft.rfft(seg * np.hanning(seg.size), 1 << 17)) ** 2)
     power = np.mean(spectra, axis=0)
     freqs = np.fft.rfftfreq(1 << 17, 1 / RATE)
-    for ratio in K.FREE_RATIOS:
+    for ratio in design.FREE_RATIOS:
         centre = f * ratio
-        band = (freqs > centre * (1 - 1.5 / K.BAND_Q)) & (freqs < centre * (1 + 1.5 / K.BAND_Q))
+        band = (freqs > centre * (1 - 1.5 / design.BAND_Q)) & (freqs < centre * (1 + 1.5 / design.BAND_Q))
         found = np.exp(np.sum(power[band] * np.log(freqs[band])) / np.sum(power[band]))
         assert abs(1200 * math.log2(found / centre)) < 5.0, (ratio, found)
 
@@ -83,7 +83,7 @@ def test_free_bands_start_30_percent_sharp():
     seg = lanes["free"]
     spectrum = np.abs(np.fft.rfft(seg * np.hanning(seg.size), 1 << 16))
     freqs = np.fft.rfftfreq(1 << 16, 1 / RATE)
-    top = f * K.FREE_RATIOS[-1]
+    top = f * design.FREE_RATIOS[-1]
     window = (freqs > top * 1.1) & (freqs < top * 1.45)
     peak = freqs[window][np.argmax(spectrum[window])]
     assert peak > top * 1.2  # still near 1.3 x within the first 30 ms
@@ -104,8 +104,8 @@ def test_describe_lists_the_patch_modes():
     modes = MODEL.describe({"frequency_hz": 426.0})
     clamped = [m.frequency_hz for m in modes if m.group == "clamped"]
     free = [m.frequency_hz for m in modes if m.group == "free-bar"]
-    assert clamped == pytest.approx([106.5 * r for r in K.CLAMPED_RATIOS])
-    assert free == pytest.approx([426.0 * r for r in K.FREE_RATIOS])
+    assert clamped == pytest.approx([106.5 * r for r in design.CLAMPED_RATIOS])
+    assert free == pytest.approx([426.0 * r for r in design.FREE_RATIOS])
     low_rate = MODEL.describe({"frequency_hz": 800.0}, sample_rate=22050)
     assert all(m.frequency_hz < 11025 for m in low_rate) and len(low_rate) < len(modes)
 
@@ -115,7 +115,7 @@ def test_a_band_above_nyquist_is_muted_not_folded():
     at 9.0 kHz, 338 Hz below band 5. Compare the free-bar spectrum there with the point
     mirrored across band 5: a fold would stand far above its mirror."""
     rate, f = 22050.0, 700.0
-    top = f * K.FREE_RATIOS[-1]
+    top = f * design.FREE_RATIOS[-1]
     assert top > rate / 2
     assert all(m.frequency_hz < rate / 2 for m in MODEL.describe({"frequency_hz": f}, sample_rate=rate))
     spectra = []
@@ -126,7 +126,7 @@ def test_a_band_above_nyquist_is_muted_not_folded():
     power = np.mean(spectra, axis=0)
     freqs = np.fft.rfftfreq(1 << 16, 1 / rate)
     alias = rate - top
-    band5 = f * K.FREE_RATIOS[-2]
+    band5 = f * design.FREE_RATIOS[-2]
     mirror = 2 * band5 - alias
 
     def near(x):
@@ -160,7 +160,7 @@ def test_frequency_change_while_sounding_glides_without_a_click():
     voice.trigger()
     voice.process(int(0.3 * RATE), dtype=np.float64)
     voice.set_parameters(frequency_hz=600.0)
-    after, lanes = voice.process(int(0.05 * RATE), dtype=np.float64, trace=True)
+    after, lanes = voice.trace(int(0.05 * RATE))
     steps = -np.diff(np.concatenate([[0.0], lanes["drive"]]))
     steps = steps[(steps > 0) & (steps < 0.5)] * RATE  # drive frequency per sample
     assert np.all(np.diff(steps) < 1.0)  # it rises over a few ms (0.2 Hz a sample), never jumps 43 Hz
@@ -188,3 +188,56 @@ def test_every_parameter_rejected_just_outside_its_range(p):
     for bad in (p.minimum - 1e-6 * span, p.maximum + 1e-6 * span, float("nan")):
         with pytest.raises(ParameterError, match=p.name):
             MODEL.render({p.name: bad}, duration_s=0.01)
+
+
+# -- the model contract ------------------------------------------------------------------
+def test_process_into_a_buffer_allocates_nothing():
+    """2000 blocks into the caller's buffers leave nothing behind (under a byte a call), and
+    none allocates even a passing block of samples (numba's dispatcher makes a few small
+    objects a call)."""
+    from allocations import process_allocations
+
+    voice = FarnellVoice(seed=1, max_block=256)
+    voice.trigger()
+    held, passing = process_allocations(voice)
+    assert held < 1000 and passing < 256 * 8, (held, passing)
+
+
+def test_trace_gives_the_samples_process_gives():
+    a, b = FarnellVoice(seed=3), FarnellVoice(seed=3)
+    a.trigger()
+    b.trigger()
+    samples, lanes = a.trace(1000)
+    assert np.array_equal(samples, b.process(1000, dtype=np.float64))
+    assert sorted(lanes) == ["clamped", "drive", "free"] and all(v.shape == (1000,) for v in lanes.values())
+    more, _ = a.trace(500)
+    assert np.array_equal(more, b.process(500, dtype=np.float64))
+
+
+def test_a_level_change_glides_over_the_smoothing_time():
+    from barsynth.models.farnell import SMOOTHING_TIME_S
+
+    plain, quiet = FarnellVoice(seed=5), FarnellVoice(seed=5)
+    for v in (plain, quiet):
+        v.trigger()
+        v.process(int(0.1 * RATE))
+    quiet.set_parameters(level_db=-20.0)
+    ramp = int(SMOOTHING_TIME_S * RATE)
+    ratio = quiet.process(2 * ramp, dtype=np.float64) / plain.process(2 * ramp, dtype=np.float64)
+    ratio = ratio[np.isfinite(ratio)]
+    assert ratio[0] < 1.0 and np.all(np.diff(ratio[:ramp - 1]) < 0)  # falls sample by sample...
+    assert ratio[ramp:] == pytest.approx(0.1, rel=1e-9)  # ...to -20 dB, then holds
+
+
+def test_the_golden_glide_does_not_click():
+    """The golden 'glide' (frequency 426 -> 500 Hz and level -6 dB 0.1 s into the note):
+    the output's largest sample-to-sample step near the change is no larger than the
+    note's own steps just before it."""
+    from golden import CHANGE_AT_S, GLIDES, render_case
+
+    rate = 48000
+    x = render_case("farnell", {}, rate, GLIDES["farnell"])
+    change = int(CHANGE_AT_S * rate)
+    ms = rate // 1000
+    steps = np.abs(np.diff(x))
+    assert steps[change - 2 * ms:change + 10 * ms].max() <= 1.05 * steps[change - 20 * ms:change].max()

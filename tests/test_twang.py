@@ -490,10 +490,10 @@ def test_presets_exist_resolve_and_sound():
 
 
 def test_lambdas_used_are_the_physics_layer_ones():
-    from barsynth.models.twang import _lambdas
+    from barsynth.models.twang.design import mode_lambdas
 
-    assert np.array_equal(_lambdas()[:6], lambdas("clamped-free", 6))
-    assert np.array_equal(_lambdas()[6:], lambdas("free-free", 6))
+    assert np.array_equal(mode_lambdas()[:6], lambdas("clamped-free", 6))
+    assert np.array_equal(mode_lambdas()[6:], lambdas("free-free", 6))
 
 
 def test_retrigger_after_a_change_sounds_like_a_fresh_note():
@@ -527,3 +527,82 @@ def test_extreme_values_of_the_wrong_size_are_parameter_errors():
         voice.process(2**62)
     with pytest.raises(ParameterError, match="dtype"):
         voice.process(4, dtype=None)
+
+
+# -- the model contract ------------------------------------------------------------------
+def test_process_into_a_buffer_allocates_nothing():
+    """2000 blocks into the caller's buffers leave nothing behind (under a byte a call), and
+    none allocates even a passing block of samples (numba's dispatcher makes a few small
+    objects a call)."""
+    from allocations import process_allocations
+
+    voice = TwangVoice(sample_rate=48000, seed=1, max_block=256)
+    voice.trigger()
+    held, passing = process_allocations(voice)
+    assert held < 1000 and passing < 256 * 8, (held, passing)
+
+
+def test_the_control_vector_has_every_table_row_by_name():
+    from barsynth.models.twang.table import ROWS, control_vector
+
+    assert ROWS._fields == TWANG_TABLE.names
+    assert tuple(ROWS) == tuple(range(len(TWANG_TABLE)))
+    p = TWANG_TABLE.resolve({"gain_mapping": "log", "slide": True, "length_m": 0.2, "material": "steel"})
+    values = control_vector(p)
+    assert values[ROWS.gain_mapping] == 1.0 and values[ROWS.slide] == 1.0 and values[ROWS.length_m] == 0.2
+    assert values[ROWS.youngs_modulus_pa] == p.youngs_modulus_pa
+
+
+def test_ramps_are_multiplicative_for_log_scaled_rows():
+    from barsynth.dsp.smoothing import LINEAR, MULTIPLICATIVE
+    from barsynth.models.twang.voice import RAMP_KINDS
+
+    for p, kind in zip(TWANG_TABLE, RAMP_KINDS):
+        assert kind == (MULTIPLICATIVE if p.scale == "log" else LINEAR), p.name
+
+
+def test_a_change_reaches_its_target_within_the_smoothing_time():
+    """q from 100 to 400 (multiplicative) and length from 0.3 to 0.2 m (linear): the modes
+    described for the new values sound exactly once the ramp of SMOOTHING_TIME_S has ended."""
+    from barsynth.models.twang import SMOOTHING_TIME_S
+
+    rate = 48000
+    new = {"q": 400.0, "length_m": 0.2}
+    voice = TwangVoice(deterministic(), sample_rate=rate)
+    voice.trigger()
+    voice.process(int(0.1 * rate))
+    voice.set_parameters(**new)
+    voice.process(int(SMOOTHING_TIME_S * rate) + 2 * 96)
+    x = voice.process(rate, dtype=np.float64)
+    loudest = max(MODEL.describe(deterministic(**new), sample_rate=rate), key=lambda m: m.gain)
+    found = measure_partial(x, rate, loudest.frequency_hz, bandwidth_hz=0.2 * loudest.frequency_hz)
+    assert abs(cents(found.frequency_hz, loudest.frequency_hz)) < 1.0
+    assert found.t60_s == pytest.approx(loudest.t60_s, rel=0.05)
+
+
+def test_the_golden_glide_does_not_click():
+    """The golden 'glide' sound (length, q and level changed together 0.1 s into the note):
+    no high-pass spike; and with the cantilever modes only (no noise, whose steps would
+    hide a click's), no step beyond the click threshold either."""
+    from golden import CHANGE_AT_S, GLIDES, render_case
+
+    rate = 48000
+    change = int(CHANGE_AT_S * rate)
+    _, spike = _click_measures(render_case("twang", {}, rate, GLIDES["twang"]), change, rate)
+    assert spike <= MAX_HIGHPASS_SPIKE, spike
+    ratio, spike = _click_measures(render_case("twang", deterministic(), rate, GLIDES["twang"]), change, rate)
+    assert ratio <= MAX_STEP_RATIO and spike <= MAX_HIGHPASS_SPIKE, (ratio, spike)
+
+
+def test_mode_mask_set_on_a_voice_from_the_model():
+    mask = np.zeros(18, dtype=bool)
+    mask[3] = True
+    soloed = TwangVoice(deterministic(), mode_mask=mask)
+    voice = MODEL.voice(deterministic())
+    voice.mode_mask = mask
+    assert np.array_equal(voice.mode_mask, mask.astype(float))
+    for v in (soloed, voice):
+        v.trigger()
+    assert np.array_equal(voice.process(4800), soloed.process(4800))
+    with pytest.raises(ParameterError, match="mode_mask"):
+        voice.mode_mask = [1, 0]

@@ -252,6 +252,23 @@ class Parameter:
         return int(round(value)) if self.kind == INT else value
 
 
+def material_parameter(note: str = "", when: Any = ()) -> Parameter:
+    """``material``: a name from the materials table that sets ``youngs_modulus_pa`` and
+    ``density_kg_m3`` (``custom``: those two as given); ``note`` prefixes its doc, ``when``
+    says when it acts."""
+    from .physics.materials import material, materials
+
+    def lookup(name: str) -> tuple[float, float]:
+        m = material(name)
+        return m.youngs_modulus_pa, m.density_kg_m3
+
+    return Parameter("material", "", None, None, "custom",
+                     f"{note}a material from the materials table (barsynth materials): sets youngs_modulus_pa "
+                     "and density_kg_m3; custom keeps those as given",
+                     kind=CHOICE, choices=("custom", *materials()), when=when,
+                     sets=Sets(("youngs_modulus_pa", "density_kg_m3"), lookup))
+
+
 def _fmt(x: float | None) -> str:
     if x is None:
         return "?"

@@ -1,0 +1,122 @@
+"""The numba kernel of Farnell's ruler twang and its anchor (barsynth spec 5).
+
+A. Farnell, *Designing Sound*, MIT Press 2010, chapter "Boing" (the Pure Data patch
+``twang.pd``). Every signal is computed per sample, as in the patch, so the output does
+not depend on the block size. The state is two records the voice allocates in ``prepare``:
+:class:`Controls` (the anchor switch and the ramps of frequency, depth and level) and
+:class:`Patch` (the clocks, phasor and filters).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from ...dsp.noise import uniform_noise
+from ...dsp.smoothing import LINEAR, MULTIPLICATIVE, next_value
+from .design import (BAND_Q, CLAMPED_GAINS, CLAMPED_MIX, CLAMPED_RATIOS, FREE_RATIOS, GLIDE_BANDS, GLIDE_DRIVE_HZ,
+                     HIGHPASS_HZ, LFO_HZ, LOWPASS_HZ, NYQUIST_TAPER, OUTPUT_GAIN, envelopes)
+
+
+class Controls(NamedTuple):
+    """What the parameters set: the anchor switch and three dsp.smoothing ramps."""
+
+    anchor: bool  # the drive is cos(2 pi phase) instead of the phasor
+    frequency_hz: np.ndarray  # ramp of f (multiplicative)
+    depth_hz: np.ndarray  # ramp of the vibrato depth (linear)
+    gain: np.ndarray  # ramp of the output gain 10^(level_db/20) (linear)
+
+
+class Patch(NamedTuple):
+    """The patch's state."""
+
+    scalars: np.ndarray  # the S_* slots below
+    rng: np.ndarray  # the noise generator (dsp.noise)
+    bands: np.ndarray  # (2, 6): each vcf~'s complex state, re and im
+
+
+S_TIME = 0  # samples since the trigger (-1: never triggered)
+S_CLOCK = 1  # samples since reset: the free-running LFO
+S_PHASE = 2  # drive phasor phase, [0, 1)
+S_LOWPASS = 3
+S_HP_LAST = 4
+N_SCALARS = 5
+
+LANES = ("drive", "clamped", "free")  # what process() can trace, in its rows
+
+_RATIOS = np.array(CLAMPED_RATIOS)
+_GAINS = np.array(CLAMPED_GAINS)
+_FREE = np.array(FREE_RATIOS)
+
+
+@njit(cache=True, nogil=True)
+def process(out, lanes, sample_rate, controls, patch):
+    """Render ``len(out)`` samples. ``lanes`` (shape (3, n), or (0, 0) for none) receives
+    the drive signal, the clamped bank C(t) and the free-bar sum, for measurement."""
+    n = out.shape[0]
+    tracing = lanes.shape[0] == 3
+    lp_k = min(1.0, 2.0 * math.pi * LOWPASS_HZ / sample_rate)
+    hp_c = 1.0 - 2.0 * math.pi * HIGHPASS_HZ / sample_rate
+    hp_gain = 0.5 * (1.0 + hp_c)
+    vcf_in = 2.0 - 2.0 / (BAND_Q + 2.0)
+    nyquist = 0.5 * sample_rate
+    anchor = controls.anchor
+    state = patch.scalars
+    bands = patch.bands
+    x_rng = patch.rng[0]
+    for i in range(n):
+        f_hz = next_value(controls.frequency_hz, MULTIPLICATIVE)
+        depth = next_value(controls.depth_hz, LINEAR)
+        level = OUTPUT_GAIN * next_value(controls.gain, LINEAR)
+        f = f_hz + depth * math.sin(2.0 * math.pi * LFO_HZ * state[S_CLOCK] / sample_rate)
+        state[S_CLOCK] += 1.0
+        sound = 0.0
+        drive = 0.0
+        clamped = 0.0
+        free = 0.0
+        if state[S_TIME] >= 0.0:
+            c, glide = envelopes(state[S_TIME] / sample_rate)
+            state[S_TIME] += 1.0
+            phase = state[S_PHASE]
+            drive = math.cos(2.0 * math.pi * phase) if anchor else phase
+            c2 = c * c
+            bank = 0.0
+            for k in range(4):
+                bank += _GAINS[k] * math.cos(2.0 * math.pi * _RATIOS[k] * drive)
+            clamped = c2 * c2 * bank
+            # falling phasor at -(f/4 + 6 E)
+            phase -= (0.25 * f + GLIDE_DRIVE_HZ * glide) / sample_rate
+            phase -= math.floor(phase)
+            state[S_PHASE] = phase
+            x_rng, u = uniform_noise(x_rng)
+            state[S_LOWPASS] += lp_k * (u * drive * drive * clamped - state[S_LOWPASS])
+            centre = f * (1.0 + GLIDE_BANDS * glide)
+            x_in = state[S_LOWPASS]
+            for b in range(6):
+                fc = centre * _FREE[b]
+                edge = (nyquist - fc) / (NYQUIST_TAPER * nyquist)
+                if edge <= 0.0:
+                    continue
+                cf = 2.0 * math.pi * fc / sample_rate
+                r = max(0.0, 1.0 - cf / BAND_Q)
+                rc = r * math.cos(cf)
+                rs = r * math.sin(cf)
+                re = bands[0, b]
+                im = bands[1, b]
+                new_re = vcf_in * (1.0 - r) * x_in + rc * re - rs * im
+                bands[1, b] = rs * re + rc * im
+                bands[0, b] = new_re
+                free += new_re * min(1.0, edge)
+            sound = free + CLAMPED_MIX * clamped
+        # Pd's hip~ at 90 Hz, then x4 and the level
+        node = sound + hp_c * state[S_HP_LAST]
+        out[i] = level * hp_gain * (node - state[S_HP_LAST])
+        state[S_HP_LAST] = node
+        if tracing:
+            lanes[0, i] = drive
+            lanes[1, i] = clamped
+            lanes[2, i] = free
+    patch.rng[0] = x_rng

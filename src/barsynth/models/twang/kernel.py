@@ -1,0 +1,461 @@
+"""The twang's numba kernel: control frames, the oscillator bank and the free-bar bands.
+
+Selfridge et al., AES Convention Paper 10553, 2022. :func:`process` renders samples; its
+state is five records (:class:`Setup`, :class:`Controls`, :class:`Note`,
+:class:`Oscillators`, :class:`Bands`) that the voice allocates in ``prepare``.
+
+Control work (parameter ramps, vibrato, slide, coefficient design) happens once per control
+frame of ``frame_len`` samples, counted from the trigger or reset, so the output does not
+depend on how the caller splits a render into blocks. Each control follows its target along
+a :mod:`barsynth.dsp.smoothing` ramp of ``ramp_frames`` frames (multiplicative for the
+log-scaled rows, linear for the others). Inside a frame every oscillator is a rotating
+complex phasor ``z_k = z_0 (r e^{jw})^k`` (equal to ``r^k cos(2 pi phase)`` of the paper's
+phasor -> cosine, to rounding); the powers are tabulated once per design, so a frame of the
+oscillator bank is a matrix-vector product, and ``z`` advances once per frame. Gains ramp
+linearly inside a frame, so a parameter change never steps the output. Modes that have
+decayed below ``CULL_LEVEL`` are skipped.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from ...dsp.noise import uniform_noise
+from ...dsp.smoothing import LEFT, TARGET, next_value, start_ramp
+from .design import MODES_PER_GROUP, N_BANDS, N_OSC, bandpass, design
+from .table import Rows
+
+
+class Setup(NamedTuple):
+    """What ``prepare`` fixes."""
+
+    sample_rate: float  # Hz
+    frame_len: int  # samples per control frame
+    ramp_frames: int  # control frames per parameter ramp
+    lambdas: np.ndarray  # 6 clamped-free, then 6 free-free eigenvalues
+    mode_mask: np.ndarray  # 18 values: 1 sounds, 0 mutes
+    rows: Rows  # each parameter's slot in the control vectors
+
+
+class Controls(NamedTuple):
+    """The parameters as control vectors (slots: :data:`~.table.ROWS`)."""
+
+    values: np.ndarray  # in force: where each ramp is
+    target: np.ndarray  # the voice's current parameters
+    ramps: np.ndarray  # (slots, SMOOTHED_STATE): each slot's ramp
+    kinds: np.ndarray  # each slot's ramp: smoothing.LINEAR or MULTIPLICATIVE (int64)
+
+
+class Note(NamedTuple):
+    """The note's clock and its noise drive."""
+
+    scalars: np.ndarray  # the S_* slots below
+    rng: np.ndarray  # the noise generator (dsp.noise)
+    diff: np.ndarray  # frame_len scratch: low-passed noise x[n] - x[n-2], the bands' input
+    counts: np.ndarray  # oscillators and bands computed this frame (int64)
+
+
+class Oscillators(NamedTuple):
+    """The 12 cantilever modes as rotating phasors."""
+
+    z: np.ndarray  # (2, N_OSC): re, im at the frame start
+    powers: np.ndarray  # (2, N_OSC, frame_len + 1): (r e^{jw})^k, re and im
+    gain: np.ndarray  # (3, N_OSC): at the frame start, step per sample, target
+    active: np.ndarray  # (N_OSC,) int64: those computed this frame, first counts[0]
+
+
+class Bands(NamedTuple):
+    """The 6 free-bar modes: 4th-order band-passes with their decay envelopes."""
+
+    state: np.ndarray  # (4, N_BANDS): y1, y2 of the first section, y1, y2 of the second
+    coef: np.ndarray  # (4, N_BANDS): see design.bandpass
+    env: np.ndarray  # (N_BANDS,): decay envelope at the frame start
+    powers: np.ndarray  # (N_BANDS, frame_len + 1): r^k
+    gain: np.ndarray  # (3, N_BANDS): at the frame start, step per sample, target
+    active: np.ndarray  # (N_BANDS,) int64: those computed this frame, first counts[1]
+
+
+# -- the note's scalar slots ----------------------------------------------------------------
+S_PHASE = 0  # drive phasor at the full-length fundamental, [0, 1)
+S_PHASE_INC = 1
+S_LOWPASS = 2  # one-pole low-pass state
+S_LOWPASS_K = 3
+S_TIME = 4  # samples since the trigger (float)
+S_FRAME_POS = 5  # position inside the current control frame
+S_LFO_PHASE = 6
+S_FORCE = 7  # 1 -> design at the next frame start even if nothing moves, gains jump
+S_DYNAMIC = 8  # 1 while the last design is still in force with ramps to finish
+S_X1 = 9  # low-passed noise one and two samples back (band-pass input history)
+S_X2 = 10
+N_SCALARS = 11
+
+# Per-sample loops may fuse a*b+c into one FMA instruction (shorter recursion
+# latency); nothing else of fast-math. The result is still deterministic.
+_CONTRACT = {"contract"}
+
+CULL_LEVEL = 1e-7  # a mode whose output amplitude is below -140 dBFS is not computed
+BAND_PEAK_FACTOR = 8.0  # bound on a band's output relative to its white-noise rms, for culling
+
+
+@njit(cache=True, nogil=True)
+def settle(controls):
+    """Every control at its target now (a trigger, a reset)."""
+    for i in range(controls.values.size):
+        start_ramp(controls.ramps[i], controls.kinds[i], controls.target[i], 0)
+        controls.values[i] = controls.target[i]
+
+
+@njit(cache=True, nogil=True)
+def _follow(controls, ramp_frames):
+    """One frame along every control's ramp (a new target starts a ramp from where the
+    control is); whether any control moved or still moves."""
+    moving = False
+    for i in range(controls.values.size):
+        ramp = controls.ramps[i]
+        if controls.target[i] != ramp[TARGET]:
+            start_ramp(ramp, controls.kinds[i], controls.target[i], ramp_frames)
+        value = next_value(ramp, controls.kinds[i])
+        if value != controls.values[i] or ramp[LEFT] > 0.0:
+            moving = True
+        controls.values[i] = value
+    return moving
+
+
+@njit(cache=True, nogil=True)
+def _control(setup, controls, note, modes, osc, bands):
+    """Start of a control frame: follow the ramps, and if anything moves, design anew."""
+    sample_rate = setup.sample_rate
+    frame_len = setup.frame_len
+    rows = setup.rows
+    params = controls.values
+    scal = note.scalars
+    moving = _follow(controls, setup.ramp_frames)
+    time_s = scal[S_TIME] / sample_rate
+    vibrato = params[rows.vibrato_rate_hz] > 0.0 and params[rows.vibrato_depth_hz] > 0.0
+    sliding = params[rows.slide] > 0.0 and time_s <= params[rows.slide_time_s] + frame_len / sample_rate
+    force = scal[S_FORCE] != 0.0
+    dynamic = force or moving or vibrato or sliding
+    if not dynamic and scal[S_DYNAMIC] == 0.0:
+        return  # nothing moves and the last design is the resting one
+    # Design; a static frame right after a dynamic one designs once more, so the
+    # resting state (vibrato off, slide finished, targets reached) is exact.
+    scal[S_DYNAMIC] = 1.0 if dynamic else 0.0
+    lfo_sin = math.sin(2.0 * math.pi * scal[S_LFO_PHASE]) if vibrato else 0.0
+    phasor_hz, norm = design(params, rows, setup.lambdas, setup.mode_mask, sample_rate, time_s, lfo_sin, modes)
+    freqs = modes.frequency_hz
+    gains = modes.gain
+    alphas = modes.alpha_per_s
+    scal[S_PHASE_INC] = phasor_hz / sample_rate
+    scal[S_LOWPASS_K] = 1.0 - math.exp(-2.0 * math.pi * params[rows.noise_cutoff_hz] / sample_rate)
+    level = 10.0 ** (params[rows.level_db] / 20.0) * norm
+    ramp = 1.0 / frame_len
+    osc_pow = osc.powers
+    osc_gain = osc.gain
+    for j in range(N_OSC):
+        r = math.exp(-alphas[j] / sample_rate)
+        w = 2.0 * math.pi * freqs[j] / sample_rate
+        a = r * math.cos(w)
+        b = r * math.sin(w)
+        # powers (r e^{jw})^k, k = 0 .. frame_len (the last advances z by a frame)
+        pr = 1.0
+        pi = 0.0
+        for k in range(frame_len + 1):
+            osc_pow[0, j, k] = pr
+            osc_pow[1, j, k] = pi
+            pr, pi = a * pr - b * pi, b * pr + a * pi
+        g = gains[j] * level
+        if force:
+            osc_gain[0, j] = g
+            osc_gain[1, j] = 0.0
+        else:
+            osc_gain[1, j] = (g - osc_gain[0, j]) * ramp
+        osc_gain[2, j] = g
+    band_pow = bands.powers
+    band_gain = bands.gain
+    for b in range(N_BANDS):
+        k = 2 * MODES_PER_GROUP + b
+        f = min(freqs[k], 0.499 * sample_rate)
+        bandpass(f, params[rows.free_band_q], sample_rate, bands.coef, b)
+        r = math.exp(-alphas[k] / sample_rate)
+        e = 1.0
+        for i in range(frame_len + 1):
+            band_pow[b, i] = e
+            e *= r
+        g = gains[k] * level
+        if force:
+            band_gain[0, b] = g
+            band_gain[1, b] = 0.0
+        else:
+            band_gain[1, b] = (g - band_gain[0, b]) * ramp
+        band_gain[2, b] = g
+    scal[S_FORCE] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def _cull(osc, bands):
+    """Choose the modes worth computing this frame; returns (n_osc, n_bands)."""
+    n_osc = 0
+    for j in range(N_OSC):
+        amp = math.sqrt(osc.z[0, j] ** 2 + osc.z[1, j] ** 2)
+        if amp * max(osc.gain[0, j], osc.gain[2, j]) >= CULL_LEVEL:
+            osc.active[n_osc] = j
+            n_osc += 1
+    n_bands = 0
+    for b in range(N_BANDS):
+        if bands.env[b] * max(bands.gain[0, b], bands.gain[2, b]) * BAND_PEAK_FACTOR >= CULL_LEVEL:
+            bands.active[n_bands] = b
+            n_bands += 1
+        else:  # not computed: start from rest if it comes back, never from stale state
+            bands.state[0, b] = 0.0
+            bands.state[1, b] = 0.0
+            bands.state[2, b] = 0.0
+            bands.state[3, b] = 0.0
+    return n_osc, n_bands
+
+
+@njit(cache=True, nogil=True)
+def process(out, setup, controls, note, modes, osc, bands):
+    """Render ``len(out)`` samples into ``out`` (float64), advancing every state record.
+
+    Work is cut into control frames counted from the last trigger or reset; a call
+    that ends inside a frame leaves ``S_FRAME_POS`` there and the next call goes
+    on with exactly the same arithmetic, so block size never changes a sample.
+    """
+    n = out.shape[0]
+    pos = 0
+    frame_len = setup.frame_len
+    lfo_step = frame_len / setup.sample_rate
+    scal = note.scalars
+    counts = note.counts
+    while pos < n:
+        frame_pos = int(scal[S_FRAME_POS])
+        if frame_pos == 0:
+            _control(setup, controls, note, modes, osc, bands)
+            scal[S_LFO_PHASE] = (scal[S_LFO_PHASE] + controls.values[setup.rows.vibrato_rate_hz] * lfo_step) % 1.0
+            counts[0], counts[1] = _cull(osc, bands)
+        m = min(n - pos, frame_len - frame_pos)
+        _render(out, pos, frame_pos, m, note, osc, bands)
+        frame_pos += m
+        if frame_pos == frame_len:
+            _end_frame(frame_len, osc, bands)
+            frame_pos = 0
+        scal[S_FRAME_POS] = float(frame_pos)
+        scal[S_TIME] += m
+        pos += m
+
+
+@njit(cache=True, nogil=True)
+def _end_frame(frame_len, osc, bands):
+    """Advance phasors and envelopes by one frame; ramps land on their targets."""
+    osc_z = osc.z
+    osc_gain = osc.gain
+    for j in range(N_OSC):
+        pr = osc.powers[0, j, frame_len]
+        pi = osc.powers[1, j, frame_len]
+        zr = osc_z[0, j]
+        zi = osc_z[1, j]
+        osc_z[0, j] = zr * pr - zi * pi
+        osc_z[1, j] = zr * pi + zi * pr
+        if osc_gain[1, j] != 0.0:
+            osc_gain[0, j] = osc_gain[2, j]
+            osc_gain[1, j] = 0.0
+    band_gain = bands.gain
+    for b in range(N_BANDS):
+        bands.env[b] *= bands.powers[b, frame_len]
+        if band_gain[1, b] != 0.0:
+            band_gain[0, b] = band_gain[2, b]
+            band_gain[1, b] = 0.0
+
+
+@njit(cache=True, nogil=True, fastmath=_CONTRACT)
+def _render(out, start, k0, m, note, osc, bands):
+    """Samples ``k0 .. k0+m-1`` of the current frame into ``out[start:start+m]``."""
+    scal = note.scalars
+    n_osc = note.counts[0]
+    n_bands = note.counts[1]
+    osc_z = osc.z
+    osc_pow = osc.powers
+    osc_gain = osc.gain
+    osc_active = osc.active
+    dst = out[start:start + m]
+    dst[:] = 0.0
+    # Oscillator bank: out[k] += Re((g + k dg) z0 W[k]) -- a matrix-vector product.
+    for a in range(n_osc):
+        j = osc_active[a]
+        zr = osc_z[0, j]
+        zi = osc_z[1, j]
+        g0 = osc_gain[0, j]
+        dg = osc_gain[1, j]
+        wr = osc_pow[0, j, k0:k0 + m]
+        wi = osc_pow[1, j, k0:k0 + m]
+        if dg == 0.0:
+            cr = g0 * zr
+            ci = g0 * zi
+            for i in range(m):
+                dst[i] += cr * wr[i] - ci * wi[i]
+        else:
+            for i in range(m):
+                g = g0 + (k0 + i) * dg
+                dst[i] += g * (zr * wr[i] - zi * wi[i])
+    if n_bands == 0:
+        return  # every band has died away: the noise is not needed
+    # Free bar: noise x phasor^2 -> one-pole low-pass; the band-passes (direct form I,
+    # b1 = 0, b2 = -b0) only need x[n] - x[n-2], kept in ``note.diff``.
+    phase = scal[S_PHASE]
+    inc = scal[S_PHASE_INC]
+    lp = scal[S_LOWPASS]
+    lpk = scal[S_LOWPASS_K]
+    x1 = scal[S_X1]
+    x2 = scal[S_X2]
+    rng = note.rng
+    state = rng[0]
+    diff = note.diff[:m]
+    for i in range(m):
+        state, u = uniform_noise(state)
+        lp += lpk * (u * phase * phase - lp)
+        diff[i] = lp - x2
+        x2 = x1
+        x1 = lp
+        phase += inc
+        if phase >= 1.0:
+            phase -= 1.0
+    scal[S_PHASE] = phase
+    scal[S_LOWPASS] = lp
+    scal[S_X1] = x1
+    scal[S_X2] = x2
+    rng[0] = state
+    # Bands two at a time: two independent recursions per loop keep the FPU busy.
+    band_state = bands.state
+    band_coef = bands.coef
+    band_env = bands.env
+    band_pow = bands.powers
+    band_gain = bands.gain
+    band_active = bands.active
+    a = 0
+    while a < n_bands:
+        b = band_active[a]
+        c = band_active[a + 1] if a + 1 < n_bands else -1
+        if c < 0:
+            _band(dst, diff, k0, m, b, band_state, band_coef, band_env, band_pow, band_gain)
+        else:
+            _band_pair(dst, diff, k0, m, b, c, band_state, band_coef, band_env,
+                       band_pow, band_gain)
+        a += 2
+
+
+@njit(cache=True, nogil=True, fastmath=_CONTRACT)
+def _band(dst, diff, k0, m, b, band_state, band_coef, band_env, band_pow, band_gain):
+    """One 4th-order band (two direct-form-I sections) with its gain and decay."""
+    b0a = band_coef[0, b]
+    a1 = band_coef[1, b]
+    a2 = band_coef[2, b]
+    b0b = band_coef[3, b]
+    ya1 = band_state[0, b]
+    ya2 = band_state[1, b]
+    yb1 = band_state[2, b]
+    yb2 = band_state[3, b]
+    env0 = band_env[b]
+    g0 = band_gain[0, b]
+    dg = band_gain[1, b]
+    epow = band_pow[b, k0:k0 + m]
+    if dg == 0.0:
+        c = env0 * g0
+        for i in range(m):
+            ya = (b0a * diff[i] - a2 * ya2) - a1 * ya1
+            yb = (b0b * (ya - ya2) - a2 * yb2) - a1 * yb1
+            ya2 = ya1
+            ya1 = ya
+            yb2 = yb1
+            yb1 = yb
+            dst[i] += yb * (c * epow[i])
+    else:
+        for i in range(m):
+            ya = (b0a * diff[i] - a2 * ya2) - a1 * ya1
+            yb = (b0b * (ya - ya2) - a2 * yb2) - a1 * yb1
+            ya2 = ya1
+            ya1 = ya
+            yb2 = yb1
+            yb1 = yb
+            dst[i] += yb * (env0 * epow[i]) * (g0 + (k0 + i) * dg)
+    band_state[0, b] = ya1
+    band_state[1, b] = ya2
+    band_state[2, b] = yb1
+    band_state[3, b] = yb2
+
+
+@njit(cache=True, nogil=True, fastmath=_CONTRACT)
+def _band_pair(dst, diff, k0, m, b, c, band_state, band_coef, band_env, band_pow,
+               band_gain):
+    """Two bands in one loop; the same arithmetic as :func:`_band` for each."""
+    pb0a = band_coef[0, b]
+    pa1 = band_coef[1, b]
+    pa2 = band_coef[2, b]
+    pb0b = band_coef[3, b]
+    qb0a = band_coef[0, c]
+    qa1 = band_coef[1, c]
+    qa2 = band_coef[2, c]
+    qb0b = band_coef[3, c]
+    pya1 = band_state[0, b]
+    pya2 = band_state[1, b]
+    pyb1 = band_state[2, b]
+    pyb2 = band_state[3, b]
+    qya1 = band_state[0, c]
+    qya2 = band_state[1, c]
+    qyb1 = band_state[2, c]
+    qyb2 = band_state[3, c]
+    penv = band_env[b]
+    qenv = band_env[c]
+    pg0 = band_gain[0, b]
+    pdg = band_gain[1, b]
+    qg0 = band_gain[0, c]
+    qdg = band_gain[1, c]
+    ppow = band_pow[b, k0:k0 + m]
+    qpow = band_pow[c, k0:k0 + m]
+    if pdg == 0.0 and qdg == 0.0:
+        pc = penv * pg0
+        qc = qenv * qg0
+        for i in range(m):
+            d = diff[i]
+            pya = (pb0a * d - pa2 * pya2) - pa1 * pya1
+            qya = (qb0a * d - qa2 * qya2) - qa1 * qya1
+            pyb = (pb0b * (pya - pya2) - pa2 * pyb2) - pa1 * pyb1
+            qyb = (qb0b * (qya - qya2) - qa2 * qyb2) - qa1 * qyb1
+            pya2 = pya1
+            pya1 = pya
+            pyb2 = pyb1
+            pyb1 = pyb
+            qya2 = qya1
+            qya1 = qya
+            qyb2 = qyb1
+            qyb1 = qyb
+            dst[i] += pyb * (pc * ppow[i]) + qyb * (qc * qpow[i])
+    else:
+        for i in range(m):
+            d = diff[i]
+            pya = (pb0a * d - pa2 * pya2) - pa1 * pya1
+            qya = (qb0a * d - qa2 * qya2) - qa1 * qya1
+            pyb = (pb0b * (pya - pya2) - pa2 * pyb2) - pa1 * pyb1
+            qyb = (qb0b * (qya - qya2) - qa2 * qyb2) - qa1 * qyb1
+            pya2 = pya1
+            pya1 = pya
+            pyb2 = pyb1
+            pyb1 = pyb
+            qya2 = qya1
+            qya1 = qya
+            qyb2 = qyb1
+            qyb1 = qyb
+            k = k0 + i
+            dst[i] += (pyb * (penv * ppow[i]) * (pg0 + k * pdg)
+                       + qyb * (qenv * qpow[i]) * (qg0 + k * qdg))
+    band_state[0, b] = pya1
+    band_state[1, b] = pya2
+    band_state[2, b] = pyb1
+    band_state[3, b] = pyb2
+    band_state[0, c] = qya1
+    band_state[1, c] = qya2
+    band_state[2, c] = qyb1
+    band_state[3, c] = qyb2
