@@ -93,6 +93,8 @@ REFUSED_COMBINATIONS = {
 """Values each in range that a model refuses together (set_parameters must roll back)."""
 
 MAX_STEP_RATIO = 1.5  # as tests/test_crossfade.py
+MAX_SWEEP_RATIO = 2.0  # a change that sweeps the modes by octaves (steel for acrylic: x7.8 in pitch)
+SWEEP_FACTOR = 4.0
 
 
 def model_settings(name: str, **extra) -> dict:
@@ -253,17 +255,20 @@ def test_process_into_a_buffer_allocates_nothing(name, excitation, kind):
     voice = fresh(name, excited(name, excitation, long_bow=True), max_block=256)
     voice.trigger()
     buf = np.empty(256, dtype=kind)
-    for _ in range(20):  # warm-up: lazy allocations, the bow's start
-        voice.process(256, out=buf)
     tracemalloc.start()
     try:
+        # warm-up under tracemalloc (lazy allocations, numba's dispatch caches, the bow's start:
+        # blocks allocated before it started and freed after would hide new ones)
+        for _ in range(2000):
+            voice.process(256, out=buf)
         before, _ = tracemalloc.get_traced_memory()
-        for _ in range(200):
+        tracemalloc.reset_peak()
+        for _ in range(500):
             voice.process(256, out=buf)
         after, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
-    assert after - before < ALLOCATION_SLACK_BYTES, f"{after - before} bytes kept over 200 calls"
+    assert after - before < ALLOCATION_SLACK_BYTES, f"{after - before} bytes kept over 500 calls"
     assert peak - before < ALLOCATION_SLACK_BYTES, f"{peak - before} bytes allocated within a call"
     assert np.all(np.isfinite(buf))
 
@@ -583,7 +588,16 @@ def test_a_change_while_sounding(name, parameter, value, excitation):
     x = np.concatenate([before, voice.process(100 * MS, dtype=np.float64)])
     assert np.all(np.isfinite(x)) and np.max(np.abs(x)) <= MAX_RAW_PEAK
     if _glides(name, get_model(name).table[parameter]):
-        assert step_ratio(x, before.size) <= MAX_STEP_RATIO
+        moved = {n: (getattr(twin.parameters, n), getattr(voice.parameters, n)) for n in get_model(name).table.names}
+        assert step_ratio(x, before.size) <= (MAX_SWEEP_RATIO if _sweeps(moved) else MAX_STEP_RATIO)
+
+
+def _sweeps(moved: dict) -> bool:
+    """Whether a change moves a stiffness, density or length by more than SWEEP_FACTOR: the voice's
+    modes then sweep octaves within its 5 ms glide, and the steps of that sweep are the sound's own."""
+    return any(isinstance(old, float) and old > 0 and new > 0 and max(new / old, old / new) > SWEEP_FACTOR
+               for name, (old, new) in moved.items()
+               if name in ("youngs_modulus_pa", "density_kg_m3", "length_m", "thickness_m"))
 
 
 def _refusals(name: str):
