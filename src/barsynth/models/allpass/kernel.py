@@ -1,6 +1,6 @@
 """Numba kernel of the all-pass waveguide bar (barsynth spec 3.2).
 
-The loop's four filters (designed by :mod:`barsynth.dsp.allpass_chain`) in the
+The loop's four filters (designed by :mod:`barsynth.models.allpass.design`) in the
 order a wave goes round::
 
     0 end0 (x_a -> 0 -> x_a)   1 right (x_a -> x_b)   2 endL (x_b -> L -> x_b)   3 left (x_b -> x_a)

@@ -17,7 +17,7 @@ all-pass sections fitted to the phase the bending waves gather there
 ends' reflections (``-j`` free or clamped, ``-1`` pinned) and a correction for the
 near field folded in so that the loop's resonances fall on the uniform bar's
 modes (:func:`barsynth.physics.bar_frequencies`). ``allpass_order`` sections in
-all; :func:`barsynth.dsp.allpass_chain.allpass_design` explains the fit and
+all; :func:`barsynth.models.allpass.design.allpass_design` explains the fit and
 reports every resonance against physics (``describe`` lists them). Losses: each
 filter holds its share (its length) of a gain and up to three minimum-phase shelves
 fitted so that every mode decays with ``T60 = q ln(1000) / (pi f)``.
@@ -59,13 +59,13 @@ from typing import Any
 
 import numpy as np
 
-from ..dsp import allpass_kernel as K
-from ..dsp.allpass_chain import AllpassDesign, allpass_design
-from ..errors import ParameterError
-from ..parameters import CHOICE, INT, Parameter, ParameterTable
-from .base import Mode, resolve_parameters
-from .rendering import check_block_size, check_dtype, check_sample_rate, check_seed, render_voice
-from .shared import (PLUCKED, STRUCK_OR_PLUCKED, PLUCK_DOC, POSITIONS_ALONG, add_force, bar_size_parameters, largest_deflection, level_parameter,
+from . import kernel as K
+from .design import AllpassDesign, allpass_design
+from ...errors import ParameterError
+from ...parameters import CHOICE, INT, Parameter, ParameterTable
+from ..base import Mode, resolve_parameters
+from ..rendering import check_block_size, check_dtype, check_sample_rate, check_seed, render_voice
+from ..shared import (PLUCKED, STRUCK_OR_PLUCKED, PLUCK_DOC, POSITIONS_ALONG, add_force, bar_size_parameters, largest_deflection, level_parameter,
                      mallet_force, mallet_parameters, pluck_force)
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "clamped-clamped", "pinned-pinned", "clamped-pinned")
@@ -110,7 +110,7 @@ ALLPASS_TABLE = ParameterTable(
 
 def design_for(p: Any, sample_rate: float) -> AllpassDesign:
     """The waveguide for resolved parameters ``p`` at ``sample_rate`` (Hz); cached."""
-    from ..physics import bar_frequencies
+    from ...physics import bar_frequencies
 
     f_1 = float(bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
                                 length_m=p.length_m, thickness_m=p.thickness_m, bc=p.bc, count=1)[0])
@@ -274,7 +274,7 @@ class AllpassVoice:
 
     def _compliance(self) -> float:
         """Static compliance of the bar at the strike point (m/N), from its fitted modes."""
-        from ..physics import mode_shape
+        from ...physics import mode_shape
 
         p, modes = self._params, [m for m in self.design.modes if m.fitted]
         mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
@@ -285,8 +285,8 @@ class AllpassVoice:
         """The largest static deflection per newton at the strike point (m/N), of the real bar and of
         the waveguide's own (travelling-wave shapes: its clamped ends move), whichever is larger:
         a pluck moves neither more than ``PLUCK_REACH`` times its displacement."""
-        from ..physics import mode_shape
-        from ..physics.modes import travelling_wave_shape
+        from ...physics import mode_shape
+        from ...physics.modes import travelling_wave_shape
 
         p, modes = self._params, [m for m in self.design.modes if m.fitted]
         if not modes:

@@ -116,7 +116,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..errors import ParameterError
+from ...errors import ParameterError
 
 __all__ = ["AllpassDesign", "Filter", "ModeFit", "allpass_design", "response"]
 
@@ -296,7 +296,7 @@ class _Targets:
     """The physical lag of each of the loop's filters (end0, middle, endL) at any ``w``."""
 
     def __init__(self, bar: _Bar, a: float, b: float, lam_top: float):
-        from ..physics import lambdas
+        from ...physics import lambdas
 
         self.bar, self.a, self.b = bar, a, b
         left, right = bar.ends
@@ -930,7 +930,7 @@ def allpass_design(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: 
 @lru_cache(maxsize=32)
 def _design(e: float, rho: float, length: float, thickness: float, width: float, bc: str, order: int,
             q: float, rate: float, strike: float, pickup: float) -> AllpassDesign:
-    from ..physics import bar_frequencies, bending_wave_constant
+    from ...physics import bar_frequencies, bending_wave_constant
 
     bar = _Bar(bending_wave_constant(e, rho, thickness), length, rho * length * thickness * width, bc, rate)
     f_1 = float(bar_frequencies(youngs_modulus_pa=e, density_kg_m3=rho, length_m=length, thickness_m=thickness,
