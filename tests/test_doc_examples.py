@@ -18,6 +18,7 @@ MODULES = [
     "barsynth.models.allpass",
     "barsynth.models.allpass.design",
     "barsynth.models.allpass.voice",
+    "barsynth.numerics",
     "barsynth.models.fd",
     "barsynth.models.crossfade",
     "barsynth.physics.grid",

@@ -60,8 +60,7 @@ from typing import Any
 import numpy as np
 
 from . import kernel as K
-from .design import AllpassDesign, allpass_design
-from ...errors import ParameterError
+from .design import AllpassDesign, design_for
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
 from ..base import Mode, resolve_parameters
 from ..rendering import check_block_size, check_dtype, check_sample_rate, check_seed, render_voice
@@ -73,7 +72,6 @@ FADE_S = 0.010  # a replaced waveguide that has rung long enough fades out over 
 MAX_RETIRED = 3  # replaced waveguides still ringing at once (beyond that the oldest fades out)
 RETIRE_T60S = 2.0  # a replaced waveguide rings on for this many of its longest T60 (-120 dB)
 LONGEST_RETIREMENT_S = 120.0
-LOWEST_FIRST_MODE_HZ = 1.0
 NEAREST_END = 1e-3
 """A pluck's force is reckoned for a point no closer to an end than this (fraction of the length):
 the filters cannot place the strike point much closer (their fit leaves a point 1e-9 from a
@@ -106,27 +104,6 @@ ALLPASS_TABLE = ParameterTable(
         level_parameter(),
     ],
 )
-
-
-def design_for(p: Any, sample_rate: float) -> AllpassDesign:
-    """The waveguide for resolved parameters ``p`` at ``sample_rate`` (Hz); cached."""
-    from ...physics import bar_frequencies
-
-    f_1 = float(bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
-                                length_m=p.length_m, thickness_m=p.thickness_m, bc=p.bc, count=1)[0])
-    if f_1 < LOWEST_FIRST_MODE_HZ:
-        raise ParameterError(
-            f"parameters length_m = {p.length_m:g}, thickness_m = {p.thickness_m:g} put the first mode at "
-            f"{f_1:.3g} Hz; allowed: a bar whose first mode lies at or above {LOWEST_FIRST_MODE_HZ:g} Hz "
-            "(shorter or thicker)")
-    design = allpass_design(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
-                            length_m=p.length_m, thickness_m=p.thickness_m, width_m=p.width_m, bc=p.bc,
-                            allpass_order=p.allpass_order, q=p.q, sample_rate=sample_rate,
-                            strike_position=p.strike_position, pickup_position=p.pickup_position)
-    if not all(np.all(np.isfinite(f.sections)) for f in design.filters):
-        raise ParameterError(f"parameter allpass_order = {p.allpass_order} gave no stable design for this bar; "
-                             "allowed: another order from 1 to 64, or another bar")
-    return design
 
 
 def _reckoned(position: float) -> float:
