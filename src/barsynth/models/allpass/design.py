@@ -44,7 +44,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any
 
 import numpy as np
 
@@ -53,6 +52,7 @@ from .fitting import Chain, fit, fit_band
 from .injection import HIGH_PASS_FRACTION, group_delay, high_pass, injection_filter, resonances
 from .loss import Loss, filter_losses
 from .plan import BAND_BOTTOM, BAND_TOP_FRACTION, BAND_TOP_HZ, Plan, first_turn, make_plans
+from .table import AllpassParams
 from .targets import Bar, Targets
 
 __all__ = ["AllpassDesign", "Filter", "ModeFit", "allpass_design", "design_for"]
@@ -253,7 +253,7 @@ def _report(filters, injection, pickup, strike_at_a, pickup_at_a, bar, w_all, co
     return tuple(modes), tuple(spurious)
 
 
-def design_for(p: Any, sample_rate: float) -> AllpassDesign:
+def design_for(p: AllpassParams, sample_rate: float) -> AllpassDesign:
     """The waveguide for the model's parameters ``p`` at ``sample_rate`` (Hz); cached. Refuses
     (ParameterError, one line) a bar whose first mode lies below ``LOWEST_FIRST_MODE_HZ`` and an
     order that gives no stable design."""
