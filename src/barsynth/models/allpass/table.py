@@ -11,8 +11,7 @@ from dataclasses import dataclass
 
 from ...exciters import STRUCK_OR_PLUCKED, Pluck, Strike
 from ...parameters import CHOICE, INT, Parameter, ParameterTable, bar_size_parameters, level_parameter
-
-BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "clamped-clamped", "pinned-pinned", "clamped-pinned")
+from ...physics.boundary import BOUNDARY_CONDITIONS
 
 
 @dataclass(frozen=True, kw_only=True)
