@@ -248,3 +248,69 @@ def test_bars_it_cannot_build_are_refused_with_one_line(change, needles):
         raw(change, 0.05, 22050)
     text = str(info.value)
     assert "\n" not in text and all(needle in text for needle in needles), text
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_processing_into_the_callers_buffer_allocates_nothing(dtype):
+    """After prepare (and a warm-up), process(n, out=buf) allocates no samples: neither for the
+    waveguide nor for a retired one still ringing beside it (a block here is 32 KB)."""
+    import tracemalloc
+
+    block = 4096
+    voice = AllpassVoice({"allpass_order": 12, "q": 10000.0}, sample_rate=RATE, max_block=block)
+    voice.trigger()
+    voice.process(300)
+    voice.set_parameters(pickup_position=0.3)  # a new waveguide: the old one rings on beside it
+    voice.trigger()
+    buf = np.empty(block, dtype=dtype)
+    for _ in range(300):
+        voice.process(block, out=buf)
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        for _ in range(200):
+            voice.process(block, out=buf)
+        after, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert len(voice._retired) == 1 and np.abs(buf).max() > 0
+    assert after - before < 8192 and peak - before < 16384, (after - before, peak - before)
+
+
+def test_a_retired_waveguide_fades_out_over_fade_s_and_is_then_gone():
+    """After a change that rebuilds the waveguide, the old one plays on exactly as if nothing
+    had changed, then its last FADE_S fall linearly to nothing: the voice's output is the
+    unchanged twin's times min(1, samples left / fade samples), bit for bit."""
+    from barsynth.models.allpass.voice import FADE_S, RETIRE_T60S
+
+    rate, p = 22050, {"q": 3.0, "allpass_order": 8}
+    voice, twin = AllpassVoice(p, sample_rate=rate), AllpassVoice(p, sample_rate=rate)
+    for v in (voice, twin):
+        v.trigger()
+        v.process(100, dtype=np.float64)
+    longest = max(m.model_t60_s for m in voice.design.modes if m.fitted)
+    voice.set_parameters(pickup_position=0.4)
+    fade = int(round(FADE_S * rate))
+    left = int(round(RETIRE_T60S * longest * rate)) + fade
+    x = np.concatenate([voice.process(b, dtype=np.float64) for b in (1, 17, 300, left)])
+    y = twin.process(x.size, dtype=np.float64)
+    gain = np.minimum(1.0, (left - np.arange(x.size)) / fade).clip(0.0)
+    assert np.array_equal(x[:left], y[:left] * gain[:left])
+    assert np.abs(y[left - fade:left]).max() > 0.0 and not voice._retired
+    assert np.all(x[left:] == 0.0)  # the new waveguide was never struck
+
+
+def test_the_kernel_unpacks_its_records_in_their_field_order():
+    """process() takes the Loop and the LoopState as plain tuples and unpacks them by position:
+    the names it unpacks must be the records' fields, in order."""
+    import ast
+    import inspect
+
+    from barsynth.models.allpass import kernel as K
+
+    body = ast.parse(inspect.getsource(K.process.py_func)).body[0].body
+    unpacked = {node.value.id: [t.id for t in node.targets[0].elts] for node in body
+                if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Tuple)
+                and isinstance(node.value, ast.Name)}
+    assert unpacked["loop"] == list(K.Loop._fields)
+    assert unpacked["state"] == list(K.LoopState._fields)
