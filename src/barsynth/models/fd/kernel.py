@@ -28,8 +28,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .bow_stroke import FORCE, PRESSURE, SPEED, VELOCITY, line_value
-from .friction import friction_given_width, friction_slope, stick_width
+from ...dsp.bow_stroke import FORCE, PRESSURE, SPEED, VELOCITY, line_value
+from ...dsp.friction import friction_given_width, friction_slope, stick_width
 
 # scalar state (the `scalars` array)
 X_MALLET = 0  # mallet position (m)

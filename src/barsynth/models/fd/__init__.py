@@ -33,15 +33,15 @@ from typing import Any
 
 import numpy as np
 
-from ..dsp import fd_kernel as K
-from ..dsp.mallet import HERTZ_EXPONENT
-from ..errors import ParameterError
-from ..parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
-from ..physics.boundary import BOUNDARY_CONDITIONS
-from ..physics.profiles import PROFILE_KINDS, THINNEST, Profile
-from .base import Mode, resolve_parameters
-from .rendering import check_block_size, check_dtype, check_sample_rate
-from .shared import (BOWED, PLUCKED, STRUCK_OR_PLUCKED, PLUCK_DOC, PLUCK_REACH, BarModel, BowedBarVoice, bar_size_parameters, bow_parameters,
+from . import kernel as K
+from ...dsp.mallet import HERTZ_EXPONENT
+from ...errors import ParameterError
+from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
+from ...physics.boundary import BOUNDARY_CONDITIONS
+from ...physics.profiles import PROFILE_KINDS, THINNEST, Profile
+from ..base import Mode, resolve_parameters
+from ..rendering import check_block_size, check_dtype, check_sample_rate
+from ..shared import (BOWED, PLUCKED, STRUCK_OR_PLUCKED, PLUCK_DOC, PLUCK_REACH, BarModel, BowedBarVoice, bar_size_parameters, bow_parameters,
                      level_parameter, mallet_parameters, mallet_stiffness)
 
 MAX_DESCRIBED = 24
@@ -102,7 +102,7 @@ def _profile(p: Any) -> Profile:
 
 
 def _grid(p: Any):
-    from ..physics.grid import bar_grid
+    from ...physics.grid import bar_grid
 
     return bar_grid(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
                     thickness_m=p.thickness_m, width_m=p.width_m, bc=p.bc, points=p.points, profile=_profile(p))
@@ -111,7 +111,7 @@ def _grid(p: Any):
 def _rigid_free(grid: Any, vector: np.ndarray) -> np.ndarray:
     """``vector`` (a force or an interpolation vector) with the rigid-body parts taken out,
     ``v - M R R^T v`` for the M-orthonormal rigid motions R of a free-free bar."""
-    from ..physics.grid import rigid_mode_count
+    from ...physics.grid import rigid_mode_count
 
     if rigid_mode_count(grid.bc) == 0:
         return vector
@@ -135,7 +135,7 @@ def highest_grid_frequency(grid: Any) -> float:
     """The grid's highest angular frequency (rad/s): what the step must resolve."""
     from scipy.linalg import eig_banded
 
-    from ..physics.grid import _upper_bands
+    from ...physics.grid import _upper_bands
 
     scale = 1.0 / np.sqrt(grid.mass)
     symmetric = grid.stiffness * scale[:, None] * scale[None, :]
@@ -301,7 +301,7 @@ class FdVoice(BowedBarVoice):
         (near a clamped or pinned end): then the largest deflection is that. A fixed point: no pluck."""
         from scipy.linalg import eigh
 
-        from ..physics.grid import rigid_mode_count
+        from ...physics.grid import rigid_mode_count
 
         grid = self._grid
         values, vectors = eigh(grid.stiffness, np.diag(grid.mass))
@@ -335,7 +335,7 @@ def fd_modes(parameters: Any = None, *, sample_rate: float = 48000.0, count: int
     """The modes of the grid the model runs on, up to ``count`` and below the output's Nyquist:
     grid frequencies, the frequencies the scheme rings them at (Hz), T60s (s) and
     mass-normalised shapes (as a dict of arrays)."""
-    from ..physics.grid import grid_eigen, rigid_mode_count
+    from ...physics.grid import grid_eigen, rigid_mode_count
 
     p = resolve_parameters(MODEL, parameters)
     rate = check_sample_rate(sample_rate)
@@ -365,7 +365,7 @@ def mode_errors_cents(parameters: Any = None, *, sample_rate: float = 48000.0, c
     """How far (cents) each mode the scheme rings lies from the converged bar's: spec 1.2's
     closed form for a uniform bar, the Richardson-extrapolated operator for any other
     profile. Negative: the grid and the step ring it flat."""
-    from ..physics.grid import grid_modes
+    from ...physics.grid import grid_modes
 
     p = resolve_parameters(MODEL, parameters)
     found = fd_modes(p, sample_rate=sample_rate, count=count)["frequency_hz"]
@@ -374,7 +374,7 @@ def mode_errors_cents(parameters: Any = None, *, sample_rate: float = 48000.0, c
     bar = dict(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
                thickness_m=p.thickness_m, bc=p.bc)
     if p.profile == "uniform":
-        from ..physics import bar_frequencies
+        from ...physics import bar_frequencies
 
         reference = bar_frequencies(count=found.size, **bar)
     else:
