@@ -17,7 +17,7 @@ MODULES = [
     "barsynth.models.banded",
     "barsynth.models.allpass",
     "barsynth.dsp.allpass_chain",
-    "barsynth.models.fd",
+    "barsynth.models.fd.voice",
     "barsynth.models.crossfade",
     "barsynth.physics.grid",
     "barsynth.physics.profiles",
