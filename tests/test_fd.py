@@ -328,3 +328,26 @@ def test_a_pluck_takes_its_cap_from_the_exciter(monkeypatch):
     capped = np.max(np.abs(plucked_shape(voice.parameters, voice._design.grid)))
     monkeypatch.setattr(pluck_module, "PLUCK_REACH", 2.0 * pluck_module.PLUCK_REACH)
     assert np.max(np.abs(plucked_shape(voice.parameters, voice._design.grid))) == pytest.approx(2.0 * capped)
+
+
+def test_a_new_level_glides_there_without_a_click():
+    """level_db glides over LEVEL_RAMP_S in equal steps of dB (dsp.smoothing, multiplicative):
+    the sound with the change is the sound without it times that ramp, from 1 on."""
+    from barsynth.models.fd.voice import LEVEL_RAMP_S
+
+    def run(change):
+        voice = FdVoice({"points": 40}, sample_rate=RATE)
+        voice.trigger()
+        first = voice.process(4410, dtype=np.float64)
+        voice.set_parameters(sigma0_per_s=1.0, **change)  # (a redesign either way)
+        return np.concatenate([first, voice.process(4410, dtype=np.float64)])
+    changed, kept = run({"level_db": -12.0}), run({})
+    assert np.array_equal(changed[:4410], kept[:4410])
+    heard = np.abs(kept) > 1e-3 * np.max(np.abs(kept))
+    heard[:4410] = False
+    gain = changed[heard] / kept[heard]
+    at = np.flatnonzero(heard)
+    steps = round(LEVEL_RAMP_S * RATE)
+    ramp = 10.0 ** (-12.0 / 20.0 * np.minimum(at - 4410 + 1, steps) / steps)
+    assert np.allclose(gain, ramp, rtol=1e-9)  # from one step below 1 to the new level, then held
+    assert gain[0] > 0.98  # no jump of 12 dB at the change

@@ -38,6 +38,7 @@ from numba import njit
 
 from ...dsp.bow_stroke import FORCE, PRESSURE, SPEED, VELOCITY, line_value
 from ...dsp.friction import friction_given_width, friction_slope, stick_width
+from ...dsp.smoothing import MULTIPLICATIVE, next_value
 
 MAX_NEWTON_STEPS = 40
 MAX_CONTACT_STEPS = 80
@@ -117,7 +118,8 @@ class Pickup(NamedTuple):
 
     at: np.ndarray
     """The pick-up's interpolation vector (padded, rigid-body motion removed)."""
-    level: float
+    level: np.ndarray
+    """The output gain as a :mod:`barsynth.dsp.smoothing` state (multiplicative), a step a sample."""
     taps: np.ndarray
     """The decimation filter's FIR (``[1]`` at one step a sample)."""
     history: np.ndarray
@@ -340,7 +342,7 @@ def process(out, scheme, bar, mallet, bow, lines, start, pickup):  # pragma: no 
         # out: the pick-up velocity, straight or through the decimation filter
         if substeps == 1:
             output.last = moved * rate
-            out[t] = output.last * level
+            out[t] = output.last * next_value(level, MULTIPLICATIVE)
         else:
             history[h] = moved * rate
             if step % substeps == substeps - 1:
@@ -348,6 +350,6 @@ def process(out, scheme, bar, mallet, bow, lines, start, pickup):  # pragma: no 
                 for j in range(taps.size):
                     acc += taps[j] * history[(h - j) & history_mask]
                 output.last = acc
-                out[t] = acc * level
+                out[t] = acc * next_value(level, MULTIPLICATIVE)
             h = (h + 1) & history_mask
     output.written = h

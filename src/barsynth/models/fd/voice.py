@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...dsp.smoothing import MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
 from ...exciters import Bow, Strike
 from ..base import Voice
 from . import kernel as K
 from .design import Design, design, history_size, plucked_shape
 from .table import FdParams
+
+LEVEL_RAMP_S = 0.020
+"""A new ``level_db`` is reached over this time (s), in equal steps of dB."""
 
 
 class FdVoice(Voice):
@@ -48,6 +52,8 @@ class FdVoice(Voice):
         self._bow_state = np.zeros(1, K.BOW_STATE)
         self._output_state = np.zeros(1, K.OUTPUT_STATE)
         self._history = np.zeros(history_size(new.taps))
+        self._level = np.zeros(SMOOTHED_STATE)
+        start_ramp(self._level, MULTIPLICATIVE, new.level, 0)
         self._use(new)
 
     def _use(self, new: Design) -> None:
@@ -59,11 +65,12 @@ class FdVoice(Voice):
                                      mallet.stiffness, mallet.exponent, self._mallet_state)
         self._bow_point = K.BowPoint(new.bow.at, new.bow.response, 0.5 * new.scheme.step_rate * new.bow.gain,
                                      p.bow_solver == "newton", self._bow_state)
-        self._pickup = K.Pickup(new.pickup, new.level, new.taps, self._history, self._output_state)
+        self._pickup = K.Pickup(new.pickup, self._level, new.taps, self._history, self._output_state)
 
     def _update(self, old: FdParams) -> None:
-        """On the same grid what rings keeps ringing (a new step keeps its velocities); a new
-        grid starts silent. A new bow velocity or force glides there."""
+        """On the same grid what rings keeps ringing (a new step keeps its velocities) and a new
+        level glides there over ``LEVEL_RAMP_S``; a new grid starts silent. A new bow velocity or
+        force glides there."""
         p = self._params
         new = design(p, self.sample_rate)
         if new.grid.mass.size != self._design.grid.mass.size:
@@ -71,6 +78,8 @@ class FdVoice(Voice):
         else:
             if p.oversampling != old.oversampling:
                 self._change_step(old.oversampling, p.oversampling, new.taps)
+            if new.level != self._level[TARGET]:
+                start_ramp(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_RAMP_S, self.sample_rate))
             self._use(new)
         self._bow.update(p)
 
