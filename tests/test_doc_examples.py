@@ -22,6 +22,7 @@ MODULES = [
     "barsynth.models.allpass.voice",
     "barsynth.numerics",
     "barsynth.models.fd",
+    "barsynth.models.fd.voice",
     "barsynth.models.crossfade",
     "barsynth.physics.grid",
     "barsynth.physics.profiles",

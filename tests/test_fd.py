@@ -127,11 +127,12 @@ def test_a_strike_never_adds_energy(rate, steps, hardness, mass, velocity):
                      "mallet_velocity_m_s": velocity, "sigma0_per_s": 0.01, "sigma1_m2_s": 0.0}, sample_rate=rate)
     voice.trigger()
     voice.process(int(0.05 * rate))
-    grid, theta, step_rate = voice._grid, voice.parameters.theta, rate * steps
-    now, before = voice._u[2:-2], voice._u_prev[2:-2]
+    grid, theta, step_rate = voice._design.grid, voice.parameters.theta, rate * steps
+    now, before = voice._bar.u[2:-2], voice._bar.u_prev[2:-2]
     bar = (0.5 * np.sum(grid.mass * ((now - before) * step_rate) ** 2) + 0.5 * theta * now @ grid.stiffness @ before
            + 0.25 * (1 - theta) * (now @ grid.stiffness @ now + before @ grid.stiffness @ before))
-    mallet_velocity = (voice._scalars[0] - voice._scalars[1]) * step_rate
+    mallet = voice._mallet_state[0]
+    mallet_velocity = (mallet['z_m'] - mallet['z_prev_m']) * step_rate
     total = bar + 0.5 * mass * mallet_velocity ** 2
     assert total == pytest.approx(0.5 * mass * velocity ** 2, rel=2e-3)
     assert mallet_velocity < 0  # it bounced off
@@ -147,7 +148,7 @@ def test_a_pluck_holds_the_point_out_and_lets_go():
     voice = FdVoice({"excitation": "pluck", "pluck_displacement_mm": 2.0, "bc": "clamped-free",
                      "strike_position": 1.0}, sample_rate=RATE)
     voice.trigger()
-    tip = float(np.dot(voice._contact[0], voice._u))
+    tip = float(np.dot(voice._mallet.at, voice._bar.u))
     assert tip == pytest.approx(2e-3, rel=1e-9)
     x = voice.process(RATE, dtype=np.float64)
     f1 = MODEL.describe({"bc": "clamped-free"}, sample_rate=RATE)[0].frequency_hz
@@ -276,3 +277,77 @@ def test_random_parameters_give_finite_output(data, found):
     assert np.all(np.isfinite(x))
     if found is not None:  # a bar moving at 1 km/s is no bar
         assert np.max(np.abs(x)) < 1e3
+
+
+# -- the voice contract ---------------------------------------------------------------------
+@pytest.mark.parametrize("excitation", ["strike", "bow", "pluck"])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_process_into_the_callers_buffer_allocates_nothing(excitation, dtype):
+    """Blocks rendered into the caller's buffer neither keep nor pass through memory: a block
+    of float64 samples (128 kB here) allocated per call would show in the peak, one small object
+    kept per call in what stays. (numba's dispatcher keeps some tens of kB of its own while it
+    types the records in its first few thousand calls: warmed up first, and below the margin.)"""
+    import tracemalloc
+
+    size, margin = 16384, 64 * 1024
+    voice = MODEL.voice({"excitation": excitation, "points": 20, "oversampling": 1}, sample_rate=RATE,
+                        max_block=size)
+    voice.trigger()
+    small, block = np.zeros(16, dtype=dtype), np.zeros(size, dtype=dtype)
+    tracemalloc.start()
+    try:
+        for _ in range(3000):
+            voice.process(16, out=small)
+        before = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        for _ in range(20):
+            assert voice.process(size, out=block) is block
+        for _ in range(3000):
+            voice.process(16, out=small)
+        after, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak - before < margin and after - before < margin
+    assert np.all(np.isfinite(block))
+
+
+def test_the_model_declares_what_it_can_do():
+    from barsynth.models.fd import FdParams
+
+    assert FdVoice.can_release and not FdVoice.restarts_on_trigger and not FdVoice.uses_seed
+    assert MODEL.reports_reference_errors and len(MODEL.errors_cents({"points": 40})) > 0
+    assert isinstance(MODEL.resolve({}), FdParams)
+
+
+def test_a_pluck_takes_its_cap_from_the_exciter(monkeypatch):
+    """The cap is the pluck exciter's one constant, read when the pluck happens."""
+    import barsynth.exciters.pluck as pluck_module
+    from barsynth.models.fd.design import plucked_shape
+
+    voice = FdVoice({"bc": "clamped-free", "excitation": "pluck", "points": 30, "strike_position": 0.05})
+    capped = np.max(np.abs(plucked_shape(voice.parameters, voice._design.grid)))
+    monkeypatch.setattr(pluck_module, "PLUCK_REACH", 2.0 * pluck_module.PLUCK_REACH)
+    assert np.max(np.abs(plucked_shape(voice.parameters, voice._design.grid))) == pytest.approx(2.0 * capped)
+
+
+def test_a_new_level_glides_there_without_a_click():
+    """level_db glides over LEVEL_RAMP_S in equal steps of dB (dsp.smoothing, multiplicative):
+    the sound with the change is the sound without it times that ramp, from 1 on."""
+    from barsynth.models.fd.voice import LEVEL_RAMP_S
+
+    def run(change):
+        voice = FdVoice({"points": 40}, sample_rate=RATE)
+        voice.trigger()
+        first = voice.process(4410, dtype=np.float64)
+        voice.set_parameters(sigma0_per_s=1.0, **change)  # (a redesign either way)
+        return np.concatenate([first, voice.process(4410, dtype=np.float64)])
+    changed, kept = run({"level_db": -12.0}), run({})
+    assert np.array_equal(changed[:4410], kept[:4410])
+    heard = np.abs(kept) > 1e-3 * np.max(np.abs(kept))
+    heard[:4410] = False
+    gain = changed[heard] / kept[heard]
+    at = np.flatnonzero(heard)
+    steps = round(LEVEL_RAMP_S * RATE)
+    ramp = 10.0 ** (-12.0 / 20.0 * np.minimum(at - 4410 + 1, steps) / steps)
+    assert np.allclose(gain, ramp, rtol=1e-9)  # from one step below 1 to the new level, then held
+    assert gain[0] > 0.98  # no jump of 12 dB at the change

@@ -19,24 +19,10 @@ from ..exciters import (BOWED, PLUCK_REACH, PLUCKED, POSITIONS_ALONG, STRUCK, ST
 from ..exciters.bow import BOW_GLIDE_S
 from ..exciters.pluck import PLUCK_DOC
 from ..exciters.strike import HARDEST_CONTACT_S, SOFTEST_CONTACT_S
-from ..parameters import CHOICE, Parameter, Sets
 from .base import resolve_parameters
 from .rendering import check_seed, render_voice
+from .rows import bar_size_parameters, level_parameter, material_parameter  # noqa: F401 (moved there)
 
-
-
-def bar_size_parameters(note: str = "", when: Any = ()) -> list[Parameter]:
-    """Material and size of a rectangular bar; ``note`` prefixes each doc (e.g. when it applies)
-    and ``when`` says when they act (see :class:`~barsynth.parameters.Parameter`)."""
-    return [
-        Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 69e9, f"{note}Young's modulus E", scale="log", when=when),
-        Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 2700.0, f"{note}density rho", scale="log", when=when),
-        material_parameter(note, when),
-        Parameter("length_m", "m", 0.02, 3.0, 0.30, f"{note}length of the bar", scale="log", when=when),
-        Parameter("thickness_m", "m", 0.0003, 0.1, 0.01, f"{note}thickness h (bending direction)", scale="log",
-                  when=when),
-        Parameter("width_m", "m", 0.002, 0.5, 0.04, f"{note}width (sets the mass)", scale="log", when=when),
-    ]
 
 
 mallet_parameters = Strike.parameters
@@ -65,10 +51,6 @@ def add_force(pending: np.ndarray, held: float, change: np.ndarray, change_held:
     queue.pending, queue.held = pending, held
     queue.add(change, change_held)
     return queue.pending, queue.held
-
-
-def level_parameter() -> Parameter:
-    return Parameter("level_db", "dB", -60.0, 40.0, 0.0, "output gain re the pick-up velocity in m/s")
 
 
 class BowedBarVoice:
@@ -131,19 +113,3 @@ class BarModel:
         """One strike, bow stroke or pluck, offline (peak at -1 dBFS unless ``normalize`` is false)."""
         return render_voice(self.voice(parameters, sample_rate=sample_rate, seed=seed), duration_s,
                             normalize=normalize, dtype=dtype)
-
-
-def material_parameter(note: str = "", when: Any = ()) -> Parameter:
-    """``material``: a name from the materials table that sets ``youngs_modulus_pa`` and
-    ``density_kg_m3`` (``custom``: those two as given)."""
-    from ..physics.materials import material, materials
-
-    def lookup(name: str) -> tuple[float, float]:
-        m = material(name)
-        return m.youngs_modulus_pa, m.density_kg_m3
-
-    return Parameter("material", "", None, None, "custom",
-                     f"{note}a material from the materials table (barsynth materials): sets youngs_modulus_pa "
-                     "and density_kg_m3; custom keeps those as given",
-                     kind=CHOICE, choices=("custom", *materials()), when=when,
-                     sets=Sets(("youngs_modulus_pa", "density_kg_m3"), lookup))

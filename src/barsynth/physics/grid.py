@@ -72,11 +72,6 @@ class BarGrid:
     stiffness: np.ndarray
     damping_laplacian: np.ndarray
 
-    def stiffness_bands(self) -> np.ndarray:
-        """``K`` in LAPACK upper banded storage, shape (3, n): rows are the 2nd and 1st
-        super-diagonals and the diagonal."""
-        return _upper_bands(self.stiffness, 2)
-
     def weights_at(self, position: float) -> tuple[np.ndarray, np.ndarray]:
         """Node indices and linear-interpolation weights of a point ``position``
         (fraction of the length) among the moving nodes; a fixed node gets no weight."""
@@ -173,11 +168,27 @@ def grid_eigen(grid: BarGrid, count: int) -> tuple[np.ndarray, np.ndarray]:
     if count + skip > size:
         raise ParameterError(f"parameter count = {count} is out of range; allowed: 1 to {size - skip} modes "
                              f"for a grid of {grid.points} points")
-    scale = 1.0 / np.sqrt(grid.mass)
-    symmetric = grid.stiffness * scale[:, None] * scale[None, :]
-    values, vectors = eig_banded(_upper_bands(symmetric, 2), select="i", select_range=(skip, skip + count - 1))
+    bands, scale = _symmetric_bands(grid)
+    values, vectors = eig_banded(bands, select="i", select_range=(skip, skip + count - 1))
     omega = np.sqrt(np.maximum(values, 0.0))
     return omega, vectors * scale[:, None]
+
+
+def highest_frequency(grid: BarGrid) -> float:
+    """The grid's highest angular frequency (rad/s): what a time step must resolve."""
+    from scipy.linalg import eig_banded
+
+    n = grid.mass.size
+    top = eig_banded(_symmetric_bands(grid)[0], eigvals_only=True, select="i", select_range=(n - 1, n - 1))
+    return math.sqrt(max(float(top[0]), 0.0))
+
+
+def _symmetric_bands(grid: BarGrid) -> tuple[np.ndarray, np.ndarray]:
+    """``M^-1/2 K M^-1/2`` in LAPACK upper banded storage (rows: the 2nd and 1st super-diagonals
+    and the diagonal), and ``M^-1/2``'s diagonal."""
+    scale = 1.0 / np.sqrt(grid.mass)
+    symmetric = grid.stiffness * scale[:, None] * scale[None, :]
+    return _upper_bands(symmetric, 2), scale
 
 
 def grid_modes(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: float, thickness_m: float,

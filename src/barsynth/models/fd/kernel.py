@@ -20,84 +20,118 @@ energy (a scalar equation, solved by bisection: energy-conserving, never a gain)
 the bow's friction is either solved with the step (Newton on the scalar equation for
 the relative velocity, the dynamic stick-slip form) or taken from the previous step
 (the simplified forced-oscillation form).
+
+What the kernel reads and writes comes as a few named records (NamedTuples of arrays and
+numbers; the scalars that change are one-row structured arrays): the :class:`Scheme`
+(the step's coefficients), the :class:`Bar` (its state), each exciter at its point
+(:class:`MalletPoint`, :class:`BowPoint`) and the :class:`Pickup` (the output filter). A
+further force or contact at a point (a finger, a desk) would be one more such record and
+one more term added to the step's solution, as the mallet and the bow are.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from .bow_stroke import FORCE, PRESSURE, SPEED, VELOCITY, line_value
-from .friction import friction_given_width, friction_slope, stick_width
-
-# scalar state (the `scalars` array)
-X_MALLET = 0  # mallet position (m)
-X_MALLET_PREV = 1
-X_MALLET_ON = 2  # 1 while the mallet may touch
-X_DV = 3  # the bow's last relative velocity (m/s): Newton's starting point, the explicit form's input
-X_HISTORY = 4  # write position in the decimation filter's history
-X_LAST = 5  # the last output value before the level (m/s)
-N_SCALARS = 6
-
-# constants (the `constants` array)
-K_MALLET_MASS = 0
-K_MALLET_STIFFNESS = 1
-K_MALLET_EXPONENT = 2
-K_SAMPLE_RATE = 3
-K_NEWTON = 4  # 1: the bow by Newton with each step, 0: explicit
-K_BOW_GAIN = 5  # eta: bow-point velocity per newton of bow force within one step (m/s/N)
-K_LEVEL = 6
-K_SUBSTEPS = 7  # scheme steps per output sample (oversampling); above 1 the output is low-passed and decimated
-K_MALLET_GAIN = 8  # gamma: the bar's displacement at the mallet per newton of this step's force (m/N)
-N_CONSTANTS = 9
+from ...dsp.bow_stroke import FORCE, PRESSURE, SPEED, VELOCITY, line_value
+from ...dsp.friction import friction_given_width, friction_slope, stick_width
+from ...dsp.smoothing import MULTIPLICATIVE, next_value
 
 MAX_NEWTON_STEPS = 40
 MAX_CONTACT_STEPS = 80
-
-
-def factor(diagonal: np.ndarray, first: np.ndarray, second: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``L D L^T`` of a symmetric pentadiagonal matrix: ``(l1, l2, 1 / d)``, where ``l1[i]``
-    and ``l2[i]`` are ``L[i, i-1]`` and ``L[i, i-2]``."""
-    n = diagonal.size
-    l1, l2, d = np.zeros(n), np.zeros(n), np.zeros(n)
-    for i in range(n):
-        if i >= 2:
-            l2[i] = second[i - 2] / d[i - 2]
-        if i >= 1:
-            l1[i] = (first[i - 1] - (l2[i] * d[i - 2] * l1[i - 1] if i >= 2 else 0.0)) / d[i - 1]
-        d[i] = diagonal[i] - l1[i] ** 2 * (d[i - 1] if i >= 1 else 0.0) - l2[i] ** 2 * (d[i - 2] if i >= 2 else 0.0)
-        if not d[i] > 0.0:
-            raise ValueError("the step matrix is not positive definite")
-    return l1, l2, 1.0 / d
-
 
 PAD = 2
 """Every node vector is stored with two zeros before and after it, so the five-point
 stencils and the substitutions need no tests at the ends."""
 
 
+class Scheme(NamedTuple):
+    """The step, fixed until the parameters change (see :func:`barsynth.models.fd.design.scheme`)."""
+
+    bands: np.ndarray
+    """(8, padded n): B's coefficients of nodes i, i-1, i+1, i-2, i+2, then (C/k)'s of i, i-1, i+1."""
+    factors: np.ndarray
+    """(3, padded n): l1, l2 and 1/d of ``A = L D L^T``."""
+    step_rate: float
+    """Scheme steps per second (Hz): the output rate x ``substeps``."""
+    substeps: int
+    """Scheme steps per output sample (oversampling)."""
+
+
+class Bar(NamedTuple):
+    """The bar's state: displacements now and a step ago (m, padded), and the step's scratch."""
+
+    u: np.ndarray
+    u_prev: np.ndarray
+    s: np.ndarray
+    """``u+ + u-`` while a step is solved (its pads stay 0)."""
+
+
+MALLET_STATE = np.dtype([("z_m", np.float64), ("z_prev_m", np.float64), ("touching", np.bool_)])
+"""The mallet's position now and a step ago (m), and whether it may still touch."""
+
+
+class MalletPoint(NamedTuple):
+    """A Hertzian mallet (:meth:`barsynth.exciters.Strike.contact`) at its point on the grid."""
+
+    at: np.ndarray
+    """The point's interpolation vector (padded): the bar's displacement there is ``at . u``."""
+    response: np.ndarray
+    """``A^-1`` times the point's force vector (padded)."""
+    gain_m_n: float
+    """The bar's displacement there per newton of this step's force (m/N)."""
+    mass_kg: float
+    stiffness: float
+    """Contact stiffness (N/m^exponent)."""
+    exponent: float
+    state: np.ndarray
+    """One :data:`MALLET_STATE` row."""
+
+
+BOW_STATE = np.dtype([("dv_m_s", np.float64)])
+"""The bow's last relative velocity (m/s): Newton's starting point, the explicit form's input."""
+
+
+class BowPoint(NamedTuple):
+    """The bow's friction (:mod:`barsynth.dsp.friction`) at its point on the grid."""
+
+    at: np.ndarray
+    response: np.ndarray
+    gain_m_s_n: float
+    """eta: the bow point's velocity per newton of bow force within one step (m/s/N)."""
+    newton: bool
+    """Solved with each step (True) or from the step before (False)."""
+    state: np.ndarray
+    """One :data:`BOW_STATE` row."""
+
+
+OUTPUT_STATE = np.dtype([("written", np.int64), ("last", np.float64)])
+"""Where the next value goes in the decimation filter's history, and the last output before
+the level (m/s)."""
+
+
+class Pickup(NamedTuple):
+    """The pick-up and the output: velocity there, low-passed and decimated, times the level."""
+
+    at: np.ndarray
+    """The pick-up's interpolation vector (padded, rigid-body motion removed)."""
+    level: np.ndarray
+    """The output gain as a :mod:`barsynth.dsp.smoothing` state (multiplicative), a step a sample."""
+    taps: np.ndarray
+    """The decimation filter's FIR (``[1]`` at one step a sample)."""
+    history: np.ndarray
+    """Its recent input, a power-of-two ring."""
+    state: np.ndarray
+    """One :data:`OUTPUT_STATE` row."""
+
+
 def padded(vector: np.ndarray) -> np.ndarray:
     out = np.zeros(vector.size + 2 * PAD)
     out[PAD:-PAD] = vector
     return out
-
-
-def stencils(b: np.ndarray, c: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The kernel's coefficient rows from the dense matrices ``B``, ``C / k`` and ``A``.
-
-    ``bands`` rows, each padded: B's coefficients of nodes i, i-1, i+1, i-2, i+2, then
-    (C/k)'s of i, i-1, i+1. ``factors`` rows, padded: l1, l2 and 1/d of ``A = L D L^T``.
-    """
-    n = b.shape[0]
-    bands = np.zeros((8, n + 2 * PAD))
-    for row, (matrix, offset) in enumerate(((b, 0), (b, -1), (b, 1), (b, -2), (b, 2), (c, 0), (c, -1), (c, 1))):
-        for i in range(n):
-            j = i + offset
-            if 0 <= j < n:
-                bands[row, PAD + i] = matrix[i, j]
-    l1, l2, inv_d = factor(np.diagonal(a).copy(), np.diagonal(a, 1).copy(), np.diagonal(a, 2).copy())
-    return bands, np.array([padded(l1), padded(l2), padded(inv_d)])
 
 
 def solve(r: np.ndarray, factors: np.ndarray) -> np.ndarray:
@@ -154,16 +188,40 @@ def _contact_force(free_squeeze, give, before, stiffness, exponent):  # pragma: 
 
 
 @njit(cache=True, inline="always")
-def _friction(s, u_prev, at_bow, lines, x, j_speed, j_velocity, j_force, pressure, scalars, newton, eta,
-              rate, u):  # pragma: no cover - compiled
+def _mallet(s, u_prev, mallet, rate):  # pragma: no cover - compiled
+    """The mallet's force (N) this step, given the step solved without it (``s``); moves the mallet."""
+    state = mallet.state[0]
+    at = mallet.at
+    bar_next = bar_before = 0.0
+    for q in range(PAD, s.size - PAD):
+        bar_next += at[q] * (s[q] - u_prev[q])
+        bar_before += at[q] * u_prev[q]
+    mass = mallet.mass_kg
+    give = 1.0 / (mass * rate * rate) + mallet.gain_m_n  # next step's squeeze lost per newton (m/N)
+    z, z_prev = state.z_m, state.z_prev_m
+    free = 2.0 * z - z_prev - bar_next  # next step's squeeze without this step's force
+    force = _contact_force(free, give, z_prev - bar_before, mallet.stiffness, mallet.exponent)
+    z_next = 2.0 * z - z_prev - force / (mass * rate * rate)
+    state.z_prev_m = z
+    state.z_m = z_next
+    if force == 0.0 and free < 0.0 and z_next < z:  # apart, and the mallet moving away
+        state.touching = False
+    return force
+
+
+@njit(cache=True, inline="always")
+def _friction(s, u_prev, u, bow, lines, x, j_speed, j_velocity, j_force, pressure, rate):  # pragma: no cover
     """The bow's friction force (N) this step, and the lines' pieces."""
     end = s.size - PAD
+    at_bow = bow.at
+    state = bow.state[0]
     speed, j_speed = line_value(lines[SPEED], x, j_speed)
     velocity, j_velocity = line_value(lines[VELOCITY], x, j_velocity)
     force_set, j_force = line_value(lines[FORCE], x, j_force)
     v_bow, f_bow = speed * velocity, pressure * force_set
     inverse_width = 1.0 / stick_width(f_bow)
-    if newton:
+    eta = bow.gain_m_s_n
+    if bow.newton:
         # the bar's velocity at the bow without the bow, then dv + eta F phi(dv) = v_bow - v0
         v0 = 0.0
         for q in range(PAD, end):
@@ -171,7 +229,7 @@ def _friction(s, u_prev, at_bow, lines, x, j_speed, j_velocity, j_force, pressur
         v0 *= 0.5 * rate
         target = v_bow - v0
         low, high = target - eta * f_bow, target + eta * f_bow
-        dv = min(max(scalars[X_DV], low), high)
+        dv = min(max(state.dv_m_s, low), high)
         for _ in range(MAX_NEWTON_STEPS):
             g = dv + eta * friction_given_width(dv, f_bow, inverse_width) - target
             if g == 0.0:
@@ -193,71 +251,72 @@ def _friction(s, u_prev, at_bow, lines, x, j_speed, j_velocity, j_force, pressur
         for q in range(PAD, end):
             v_then += at_bow[q] * (u[q] - u_prev[q])
         dv = v_bow - v_then * rate
-    scalars[X_DV] = dv
+    state.dv_m_s = dv
     return friction_given_width(dv, f_bow, inverse_width), j_speed, j_velocity, j_force
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def process(out, u, u_prev, bands, factors, contact, bow, pickup, lines, start, scalars, constants, taps, history):
+def process(out, scheme, bar, mallet, bow, lines, start, pickup):  # pragma: no cover - compiled
     """Advance the bar ``out.size`` output samples; ``out`` gets the pick-up velocity (m/s) x level.
 
-    Node vectors are padded (:data:`PAD`). ``bands`` and ``factors``: see
-    :func:`stencils`. ``contact`` rows: the mallet point's interpolation vector (for
-    the bar's displacement there) and ``A^-1`` times its force vector; ``bow`` rows:
-    the same for the bow point. ``pickup`` row: the pick-up interpolation vector
-    with rigid-body motion removed. ``lines``, ``start``: the bow's controls
-    (:mod:`barsynth.dsp.bow_stroke`) and the absolute index of ``out[0]``. With
-    ``constants[K_SUBSTEPS] = N > 1`` the scheme runs N steps per output sample and
-    the pick-up velocity passes the low-pass FIR ``taps`` (its recent past in
-    ``history``, a power-of-two ring) before every N-th value is kept.
+    ``lines``, ``start``: the bow's controls (:mod:`barsynth.dsp.bow_stroke`) and the absolute
+    index of ``out[0]``. With ``scheme.substeps = N > 1`` the scheme runs N steps per output
+    sample and the pick-up velocity passes the low-pass FIR ``pickup.taps`` before every N-th
+    value is kept.
 
-    The mallet's force is implicit: the discrete gradient of the contact spring's
-    energy between the last and the next step (Bilbao 2009), solved with the step,
-    so a strike never adds energy, however short the contact is against the step.
+    Each step is solved first without the exciters; the mallet's force (the discrete gradient
+    of the contact spring's energy between the last and the next step, Bilbao 2009: a strike
+    never adds energy, however short the contact is against the step) and the bow's friction
+    are then solved with it and added through their points' responses.
     """
-    size = u.size
-    end = size - PAD
-    rate = constants[K_SAMPLE_RATE]
+    u, u_prev, s = bar.u, bar.u_prev, bar.s
+    end = u.size - PAD
+    rate = scheme.step_rate
+    bands, factors = scheme.bands, scheme.factors
     b0, bl1, br1, bl2, br2, c0, cl1, cr1 = bands[0], bands[1], bands[2], bands[3], bands[4], bands[5], bands[6], bands[7]
     l1, l2, inv_d = factors[0], factors[1], factors[2]
-    at_mallet, mallet_response = contact[0], contact[1]
-    at_bow, bow_response = bow[0], bow[1]
-    at_pickup = pickup[0]
-    s = np.zeros(size)
-    mass, stiffness, exponent = constants[K_MALLET_MASS], constants[K_MALLET_STIFFNESS], constants[K_MALLET_EXPONENT]
-    give = 1.0 / (mass * rate * rate) + constants[K_MALLET_GAIN]  # next step's squeeze lost per newton (m/N)
-    newton = constants[K_NEWTON] > 0.5
-    eta = constants[K_BOW_GAIN]
-    level = constants[K_LEVEL]
-    substeps = int(constants[K_SUBSTEPS])
+    mallet_response, bow_response = mallet.response, bow.response
+    at_pickup = pickup.at
+    mallet_state = mallet.state[0]
+    output = pickup.state[0]
+    level = pickup.level
+    substeps = scheme.substeps
+    taps, history = pickup.taps, pickup.history
     history_mask = history.size - 1
-    h = int(scalars[X_HISTORY])
+    h = output.written
     j_speed = j_pressure = j_velocity = j_force = 0
     for step in range(out.size * substeps):
         t = step // substeps
         # A s = B u + (C/k) u-: the right-hand side formed inside the forward substitution
-        # (the last two values of each substitution ride in registers: the recurrences are the critical path)
+        # (the last two values of each substitution ride in registers: the recurrences are the critical path;
+        # so do the stencils' neighbours, loaded once each: numba cannot tell that s is apart from u)
         s1 = s2 = 0.0
+        u_l2, u_l1, u_0, u_r1 = u[PAD - 2], u[PAD - 1], u[PAD], u[PAD + 1]
+        p_l1, p_0 = u_prev[PAD - 1], u_prev[PAD]
         for q in range(PAD, end):
-            r = (b0[q] * u[q] + bl1[q] * u[q - 1] + br1[q] * u[q + 1] + bl2[q] * u[q - 2] + br2[q] * u[q + 2]
-                 + c0[q] * u_prev[q] + cl1[q] * u_prev[q - 1] + cr1[q] * u_prev[q + 1])
+            u_r2, p_r1 = u[q + 2], u_prev[q + 1]
+            r = (b0[q] * u_0 + bl1[q] * u_l1 + br1[q] * u_r1 + bl2[q] * u_l2 + br2[q] * u_r2
+                 + c0[q] * p_0 + cl1[q] * p_l1 + cr1[q] * p_r1)
             value = (r - l2[q] * s2) - l1[q] * s1
             s[q] = value
             s2 = s1
             s1 = value
+            u_l2, u_l1, u_0, u_r1 = u_l1, u_0, u_r1, u_r2
+            p_l1, p_0 = p_0, p_r1
         x = (start + t) + (step % substeps) / substeps  # the bow's clock, in output samples
         pressure, j_pressure = line_value(lines[PRESSURE], x, j_pressure)
-        mallet = scalars[X_MALLET_ON] > 0.5
+        touching = mallet_state.touching
         s1 = s2 = 0.0
         moved = 0.0
-        if pressure <= 0.0 and not mallet:  # nothing touches: the backward substitution also steps the bar
+        if pressure <= 0.0 and not touching:  # nothing touches: the backward substitution also steps the bar
             for q in range(end - 1, PAD - 1, -1):
                 value = (s[q] * inv_d[q] - l2[q + 2] * s2) - l1[q + 1] * s1
                 s2 = s1
                 s1 = value
                 following = value - u_prev[q]
-                moved += at_pickup[q] * (following - u[q])
-                u_prev[q] = u[q]
+                now = u[q]
+                moved += at_pickup[q] * (following - now)
+                u_prev[q] = now
                 u[q] = following
         else:
             for q in range(end - 1, PAD - 1, -1):
@@ -265,42 +324,32 @@ def process(out, u, u_prev, bands, factors, contact, bow, pickup, lines, start, 
                 s[q] = value
                 s2 = s1
                 s1 = value
-            if mallet:
-                bar_next = bar_before = 0.0
-                for q in range(PAD, end):
-                    bar_next += at_mallet[q] * (s[q] - u_prev[q])
-                    bar_before += at_mallet[q] * u_prev[q]
-                z, z_prev = scalars[X_MALLET], scalars[X_MALLET_PREV]
-                free = 2.0 * z - z_prev - bar_next  # next step's squeeze without this step's force
-                force = _contact_force(free, give, z_prev - bar_before, stiffness, exponent)
+            if touching:
+                force = _mallet(s, u_prev, mallet, rate)
                 for q in range(PAD, end):
                     s[q] += force * mallet_response[q]
-                z_next = 2.0 * z - z_prev - force / (mass * rate * rate)
-                scalars[X_MALLET_PREV] = z
-                scalars[X_MALLET] = z_next
-                if force == 0.0 and free < 0.0 and z_next < z:  # apart, and the mallet moving away
-                    scalars[X_MALLET_ON] = 0.0
             if pressure > 0.0:
                 friction, j_speed, j_velocity, j_force = _friction(
-                    s, u_prev, at_bow, lines, x, j_speed, j_velocity, j_force, pressure, scalars, newton, eta, rate, u)
+                    s, u_prev, u, bow, lines, x, j_speed, j_velocity, j_force, pressure, rate)
                 for q in range(PAD, end):
                     s[q] += friction * bow_response[q]
             for q in range(end - 1, PAD - 1, -1):  # the step, in the same order as above
                 following = s[q] - u_prev[q]
-                moved += at_pickup[q] * (following - u[q])
-                u_prev[q] = u[q]
+                now = u[q]
+                moved += at_pickup[q] * (following - now)
+                u_prev[q] = now
                 u[q] = following
         # out: the pick-up velocity, straight or through the decimation filter
         if substeps == 1:
-            scalars[X_LAST] = moved * rate
-            out[t] = scalars[X_LAST] * level
+            output.last = moved * rate
+            out[t] = output.last * next_value(level, MULTIPLICATIVE)
         else:
             history[h] = moved * rate
             if step % substeps == substeps - 1:
                 acc = 0.0
                 for j in range(taps.size):
                     acc += taps[j] * history[(h - j) & history_mask]
-                scalars[X_LAST] = acc
-                out[t] = acc * level
+                output.last = acc
+                out[t] = acc * next_value(level, MULTIPLICATIVE)
             h = (h + 1) & history_mask
-    scalars[X_HISTORY] = h
+    output.written = h

@@ -1,0 +1,99 @@
+"""The finite-difference bar's one parameter table, and its typed record :class:`FdParams`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ...exciters import BOWED, STRUCK_OR_PLUCKED, Bow, Pluck, Strike
+from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
+from ...physics.boundary import BOUNDARY_CONDITIONS
+from ...physics.profiles import PROFILE_KINDS, THINNEST
+from ..rows import bar_size_parameters, level_parameter
+
+UNDERCUT = {"profile": ("parabolic", "circular")}
+
+
+@dataclass(frozen=True, kw_only=True)
+class FdParams:
+    """Resolved parameters of the fd model (units, ranges and docs: :data:`FD_TABLE`)."""
+
+    youngs_modulus_pa: float
+    density_kg_m3: float
+    material: str
+    length_m: float
+    thickness_m: float
+    width_m: float
+    bc: str
+    profile: str
+    undercut_depth: float
+    undercut_width: float
+    profile_samples: tuple[float, ...]
+    points: int
+    theta: float
+    oversampling: int
+    sigma0_per_s: float
+    sigma1_m2_s: float
+    excitation: str
+    bow_solver: str
+    strike_position: float
+    pickup_position: float
+    mallet_hardness: float
+    mallet_velocity_m_s: float
+    mallet_mass_kg: float
+    pluck_displacement_mm: float
+    bow_position: float
+    bow_velocity_m_s: float
+    bow_force_n: float
+    bow_duration_s: float
+    bow_ramp_ms: float
+    level_db: float
+
+
+FD_TABLE = ParameterTable(
+    "fd",
+    [
+        *bar_size_parameters(),
+        Parameter("bc", "", None, None, "free-free", "boundary conditions at the two ends (x = 0 first)",
+                  kind=CHOICE, choices=BOUNDARY_CONDITIONS),
+        Parameter("profile", "", None, None, "uniform",
+                  "thickness along the bar: uniform, parabolic or circular (an undercut at the middle), or "
+                  "samples (profile_samples)", kind=CHOICE, choices=PROFILE_KINDS),
+        Parameter("undercut_depth", "", 0.0, 1.0 - THINNEST, 0.0,
+                  "profile = parabolic or circular: depth of the undercut at the middle, fraction of the thickness",
+                  when=UNDERCUT),
+        Parameter("undercut_width", "", 0.05, 1.0, 0.6,
+                  "profile = parabolic or circular: length of the undercut, fraction of the bar's length",
+                  when=UNDERCUT),
+        Parameter("profile_samples", "", THINNEST, 1.0, (),
+                  "profile = samples: thickness / thickness_m at equally spaced points from end to end",
+                  kind=FLOATS, max_items=64, when={"profile": ("samples",)}),
+        Parameter("points", "", 8, 400, 100, "grid nodes along the bar: more are more accurate and slower",
+                  kind=INT),
+        Parameter("theta", "", 0.0, 1.0, 0.5,
+                  "the scheme's implicitness: 0.5 or less is stable at any sample rate (0.5: no numerical "
+                  "loss); above 0.5 only on coarse grids (checked)"),
+        Parameter("oversampling", "", 1, 8, 4,
+                  "scheme steps per output sample: each doubling cuts the step's flattening of high modes "
+                  "fourfold (the output is low-passed and decimated)", kind=INT),
+        Parameter("sigma0_per_s", "1/s", 0.01, 100.0, 1.0,
+                  "loss at every frequency: T60 = 6.91 / sigma0 (modes near the step's limit decay slower: "
+                  "see describe)",
+                  scale="log"),
+        Parameter("sigma1_m2_s", "m^2/s", 0.0, 0.1, 0.002,
+                  "loss growing with frequency: adds sigma1 x wavenumber^2 to a mode's decay rate"),
+        Parameter("excitation", "", None, None, "strike",
+                  "what a trigger does: strike (a mallet), bow (a bow stroke) or pluck (a release)",
+                  kind=CHOICE, choices=("strike", "bow", "pluck")),
+        Parameter("bow_solver", "", None, None, "newton",
+                  "the bow's friction: newton (solved with each step: stick and slip) or explicit (from the "
+                  "step before: a forced oscillation)", kind=CHOICE, choices=("newton", "explicit"), when=BOWED),
+        Parameter("strike_position", "", 0.0, 1.0, 0.7, "where it is struck or plucked: fraction of the length",
+                  when=STRUCK_OR_PLUCKED),
+        Parameter("pickup_position", "", 0.0, 1.0, 0.97, "where its velocity is picked up: fraction of the length"),
+        *Strike.parameters(),
+        *Pluck.parameters(release=False),  # the bar is let go at once: the scheme's step is the release
+        *Bow.parameters(position=1.0),
+        level_parameter(),
+    ],
+    record=FdParams,
+)
