@@ -15,8 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from barsynth.analysis import measure_partial
-from barsynth.dsp import banded_kernel as K
-from barsynth.dsp.banded import design_loop
+from barsynth.models.banded import kernel as K
+from barsynth.models.banded.design import design_loop
 
 
 def bank(designs, input_weights=None, output_weights=None):

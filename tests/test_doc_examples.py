@@ -14,7 +14,7 @@ MODULES = [
     "barsynth.physics.materials",
     "barsynth.models.twang",
     "barsynth.models.farnell",
-    "barsynth.models.banded",
+    "barsynth.models.banded.voice",
     "barsynth.models.allpass",
     "barsynth.dsp.allpass_chain",
     "barsynth.models.fd",

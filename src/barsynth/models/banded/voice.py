@@ -29,13 +29,13 @@ from typing import Any
 
 import numpy as np
 
-from ..dsp import banded_kernel as K
-from ..dsp.banded import design_loop
-from ..errors import ParameterError
-from ..parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
-from .base import Mode, resolve_parameters
-from .rendering import check_block_size, check_dtype, check_sample_rate
-from .shared import (PLUCKED, STRUCK_OR_PLUCKED, PLUCK_DOC, POSITIONS_ALONG, BarModel, BowedBarVoice, add_force, bar_size_parameters,
+from . import kernel as K
+from .design import design_loop
+from ...errors import ParameterError
+from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
+from ..base import Mode, resolve_parameters
+from ..rendering import check_block_size, check_dtype, check_sample_rate
+from ..shared import (PLUCKED, STRUCK_OR_PLUCKED, PLUCK_DOC, POSITIONS_ALONG, BarModel, BowedBarVoice, add_force, bar_size_parameters,
                      bow_parameters, largest_deflection, level_parameter, mallet_force, mallet_parameters,
                      pluck_force)
 
@@ -91,7 +91,7 @@ def _shapes(p: Any, count: int, position: Any) -> np.ndarray:
     """Each mode's shape at ``position`` (fraction), normalised to a mean square of 1 (for an
     array of positions: modes x positions)."""
     if p.tuning == "physics" or p.shape == "bar":
-        from ..physics import mode_shape
+        from ...physics import mode_shape
 
         return np.array([mode_shape("free-free", n, position) for n in range(1, count + 1)], dtype=float)
     orders = np.arange(2, count + 2)
@@ -102,7 +102,7 @@ def mode_table(parameters: Any, sample_rate: float) -> tuple[np.ndarray, np.ndar
     """Frequencies (Hz), T60s (s) and mass (kg) of the modes, and a note for each muted one."""
     p = parameters
     if p.tuning == "physics":
-        from ..physics import bar_frequencies
+        from ...physics import bar_frequencies
 
         freqs = bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
                                 length_m=p.length_m, thickness_m=p.thickness_m, bc="free-free",

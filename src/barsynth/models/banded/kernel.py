@@ -1,7 +1,7 @@
 """Numba kernel of a bank of banded-waveguide loops (barsynth spec 3.1).
 
 Source: G. Essl and P. R. Cook, "Banded waveguides", Proc. ICMC 1999. One loop per
-mode, designed by :func:`barsynth.dsp.banded.design_loop`. Per sample and band:
+mode, designed by :func:`barsynth.models.banded.design.design_loop`. Per sample and band:
 
     d  = buffer[t - M]                       (the band-pass output M samples ago)
     ap = eta (d - ap[-1]) + d[-1]            (first-order Thiran all-pass)
@@ -23,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .bow_stroke import FORCE, PRESSURE, SPEED, VELOCITY, held_until, line_value
-from .friction import friction_given_width, stick_width
+from ...dsp.bow_stroke import FORCE, PRESSURE, SPEED, VELOCITY, held_until, line_value
+from ...dsp.friction import friction_given_width, stick_width
 
 # coefficient columns
 C_B0 = 0
