@@ -15,6 +15,7 @@ MODULES = [
     "barsynth.models.twang",
     "barsynth.models.farnell",
     "barsynth.models.banded.voice",
+    "barsynth.models.banded.design",
     "barsynth.models.allpass",
     "barsynth.dsp.allpass_chain",
     "barsynth.models.fd",

@@ -1,12 +1,18 @@
-"""Design of one banded-waveguide loop: band-pass, fractional delay and loop gain.
+"""Pure design of the banded model: parameters and sample rate in, modes and loops out.
 
 Source: G. Essl and P. R. Cook, "Banded waveguides: towards physical modeling of
-bowed bar percussion instruments", Proc. ICMC 1999 (barsynth spec 3.1). Each mode
-is a loop ``x -> (+) -> band-pass -> delay z^-M -> all-pass A(z) -> gain g -> (+)``.
+bowed bar percussion instruments", Proc. ICMC 1999 (barsynth spec 3.1).
 
-Where a plain implementation sets the delay to ``round(fs / f)`` and the gain from
-``T60`` alone (so high modes go out of tune and decays vary with pitch), the loop
-here is designed so that its pole lands *exactly* on the requested one:
+The modes (:func:`mode_table`) come from physics (``tuning = physics``: a uniform
+free-free bar) or from a fundamental and ratios; positions enter through mode shapes
+(:func:`mode_shapes`: the free-free bar's, or ``cos(n 2 pi x)`` around a ring).
+Modes above a quarter of the sample rate are muted (a loop needs at least four samples
+of delay), never folded; modes below ``LOWEST_HZ`` are left out.
+
+Each mode is a loop ``x -> (+) -> band-pass -> delay z^-M -> all-pass A(z) -> gain g -> (+)``
+(:func:`design_loop`). Where a plain implementation sets the delay to ``round(fs / f)``
+and the gain from ``T60`` alone (so high modes go out of tune and decays vary with
+pitch), the loop here is designed so that its pole lands *exactly* on the requested one:
 ``z0 = r e^{j w}`` with ``w = 2 pi f / fs`` and ``r = 10^(-3 / (T60 fs))``.
 The loop ``L(z) = g H(z) A(z) z^-M`` must satisfy ``L(z0) = 1``: its phase fixes the
 integer delay ``M`` and the first-order Thiran all-pass coefficient ``eta`` (solved
@@ -17,6 +23,9 @@ mode with unit amplitude, at any pitch and sample rate.
 The band-pass is a low-Q (``BAND_Q``, or the mode's own Q when that is lower)
 constant-peak section: it keeps the loop's other resonances (near 0 and ``2 f``)
 down by ``|H(2f)|`` per round trip.
+
+:func:`design_bank` puts it together: the kernel's :data:`~.kernel.LOOP` records for every
+mode that sounds, and what an exciter needs to know of the object.
 """
 
 from __future__ import annotations
@@ -24,7 +33,18 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass
+from typing import Any
 
+import numpy as np
+
+from ...errors import ParameterError
+from ...exciters import POSITIONS_ALONG, DrivePoint, largest_deflection
+from ...physics import bar_frequencies, mode_shape
+from .kernel import LOOP
+from .table import MAX_MODES, MIN_Q, BandedParams
+
+LOWEST_HZ = 20.0
+"""Modes below this are left out (Hz)."""
 BAND_Q = 6.0
 """Quality factor of each loop's band-pass (broad: the sharp resonance is the loop's)."""
 
@@ -119,3 +139,114 @@ def design_loop(frequency_hz: float, t60_s: float, sample_rate: float, *, band_q
     # The output is taken after the all-pass: T(z) = L / (g (1 - L)), residue -1 / (g L'(z0)).
     amplitude = 2.0 * abs(-1.0 / (gain * dl) / z0)
     return LoopDesign(frequency_hz, t60_s, sample_rate, b0, a1, a2, delay, eta, gain, 1.0 / amplitude, r)
+
+
+# -- the object's modes ------------------------------------------------------------------------
+def mode_shapes(p: BandedParams, count: int, position: Any) -> np.ndarray:
+    """Each of ``count`` modes' shape at ``position`` (a fraction of the length or of the
+    circumference), normalised to a mean square of 1; for an array of positions, modes x
+    positions."""
+    if p.tuning == "physics" or p.shape == "bar":
+        return np.array([mode_shape("free-free", n, position) for n in range(1, count + 1)], dtype=float)
+    orders = np.arange(2, count + 2)
+    return math.sqrt(2.0) * np.cos(np.multiply.outer(orders * 2.0 * math.pi, np.asarray(position, dtype=float)))
+
+
+def mode_table(p: BandedParams) -> tuple[np.ndarray, np.ndarray, float]:
+    """Frequencies (Hz), T60s (s) and mass (kg) of all the object's modes (which of them sound
+    at a sample rate: :func:`playable`). Raises :class:`ParameterError` for an object that
+    cannot ring (no ratios, more T60s than modes, a T60 below Q = ``MIN_Q``)."""
+    if p.tuning == "physics":
+        freqs = bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
+                                length_m=p.length_m, thickness_m=p.thickness_m, bc="free-free",
+                                count=p.mode_count)
+        mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
+    else:
+        if not p.mode_ratios:
+            raise ParameterError("parameter mode_ratios is empty; allowed: with tuning = ratios, a list of up to "
+                                 f"{MAX_MODES} ratios, each 0.25 to 200")
+        freqs = p.frequency_hz * np.array(p.mode_ratios)
+        mass = p.mass_kg
+    t60s = np.array([p.mode_t60s_s[k] if k < len(p.mode_t60s_s) else p.q * math.log(1000.0) / (math.pi * f)
+                     for k, f in enumerate(freqs)])
+    if len(p.mode_t60s_s) > len(freqs):
+        raise ParameterError(f"parameter mode_t60s_s has {len(p.mode_t60s_s)} values for {len(freqs)} modes; "
+                             "allowed: at most one T60 per mode (s)")
+    for k, (f, t60) in enumerate(zip(freqs, t60s)):
+        shortest = MIN_Q * math.log(1000.0) / (math.pi * f)
+        if t60 < shortest:
+            raise ParameterError(f"parameter mode_t60s_s: value {k + 1} = {t60:g} is too short for a mode at "
+                                 f"{f:.1f} Hz; allowed: at least {shortest:.4g} s (Q >= {MIN_Q:g})")
+    return freqs, t60s, mass
+
+
+def playable(freqs: np.ndarray, sample_rate: float) -> np.ndarray:
+    """Which modes sound: from ``LOWEST_HZ`` to a quarter of the sample rate."""
+    return (freqs >= LOWEST_HZ) & (freqs <= sample_rate / 4)
+
+
+# -- the bank of loops -------------------------------------------------------------------------
+def loop_records(designs: list[LoopDesign]) -> np.ndarray:
+    """The kernel's :data:`~.kernel.LOOP` records of ``designs``: each loop takes a unit force
+    sample as a unit impulse (``force_in`` = its input scale), is heard with weight 1, no bow."""
+    loops = np.zeros(len(designs), dtype=LOOP)
+    for name, field in (("b0", "bp_b0"), ("a1", "bp_a1"), ("a2", "bp_a2"), ("eta", "eta"), ("gain", "gain"),
+                        ("delay", "delay"), ("force_in", "input_scale")):
+        loops[name] = [getattr(d, field) for d in designs]
+    loops["out"] = 1.0
+    return loops
+
+
+@dataclass(frozen=True)
+class BankDesign:
+    """The loops of every mode that sounds, and the object as an exciter sees it.
+
+    ``loops``: the kernel's :data:`~.kernel.LOOP` records; ``modes``: each loop's row in
+    :func:`mode_table`; ``strike_point``: the object at the strike point (compliance and
+    largest deflection per newton, m/N), for a pluck.
+    """
+
+    loops: np.ndarray
+    modes: np.ndarray
+    strike_point: DrivePoint
+
+    @property
+    def longest_delay(self) -> int:
+        """The longest loop delay (samples)."""
+        return int(self.loops["delay"].max())
+
+
+def design_bank(p: BandedParams, sample_rate: float) -> BankDesign:
+    """The loops for the object ``p`` at ``sample_rate`` Hz (raises :class:`ParameterError`
+    when none of its modes can sound).
+
+    Examples
+    --------
+    >>> from barsynth.models.banded import BANDED_TABLE
+    >>> bank = design_bank(BANDED_TABLE.resolve({"tuning": "ratios", "frequency_hz": 440.0}), 48000.0)
+    >>> bank.modes, bank.loops["delay"]
+    (array([0, 1, 2]), array([108,  26,  10]))
+    """
+    freqs, t60s, mass = mode_table(p)
+    keep = playable(freqs, sample_rate)
+    if not keep.any():
+        raise ParameterError(f"no mode of this object lies between {LOWEST_HZ:g} Hz and a quarter of the "
+                             f"sample rate ({sample_rate / 4:g} Hz): its modes are at "
+                             f"{', '.join(f'{f:.1f}' for f in freqs)} Hz")
+    modes = np.flatnonzero(keep)
+    count = len(freqs)
+    strike = mode_shapes(p, count, p.strike_position)[modes]
+    pickup = mode_shapes(p, count, p.pickup_position)[modes]
+    bow = mode_shapes(p, count, p.bow_position)[modes]
+    designs = [design_loop(float(freqs[k]), float(t60s[k]), sample_rate) for k in modes]
+    loops = loop_records(designs)
+    input_scale = loops["force_in"].copy()
+    loops["force_in"] = input_scale * strike / (sample_rate * mass)  # a force sample is an impulse F / fs
+    loops["bow_in"] = input_scale * bow / (sample_rate * mass)
+    loops["bow_at"] = bow
+    loops["out"] = pickup * 10.0 ** (p.level_db / 20.0)
+    stiffness = mass * (2.0 * math.pi * freqs[modes]) ** 2  # N/m per mode
+    along = mode_shapes(p, count, POSITIONS_ALONG)[modes]
+    strike_point = DrivePoint(compliance_m_n=float(np.sum(strike ** 2 / stiffness)),
+                              reach_m_n=largest_deflection(strike, along, stiffness))
+    return BankDesign(loops, modes, strike_point)
