@@ -196,3 +196,73 @@ def test_random_parameters_give_finite_output(data, found):
     assert np.all(np.isfinite(x))
     if found is not None:  # a bar moving at 1 km/s is no bar
         assert np.max(np.abs(x)) < 1e3
+
+
+# -- the voice contract: prepare allocates, process writes into the caller's buffer -------------
+@pytest.mark.parametrize("changes", [{}, {"excitation": "pluck"}, {"excitation": "bow", "bow_duration_s": 0.05}],
+                         ids=["strike", "pluck", "bow"])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_process_into_a_buffer_allocates_nothing(changes, dtype):
+    """After prepare, blocks into the caller's buffer neither keep nor make anything: the
+    bowed kernel's work space, the filters and lines are the state's, a pending force is
+    played from where it is. The bow stroke ends (lifted) within the measured blocks, and
+    the strike's and pluck's forces run out, so every path is measured. A block's worth of
+    samples is 4 KiB (float32) or 8 KiB: the peak stays below that."""
+    import tracemalloc
+
+    block = 1024
+    voice = MODEL.voice({**preset_parameters("banded", "bowl"), **changes}, sample_rate=48000, max_block=block)
+    buffer = np.empty(block, dtype=dtype)
+    voice.trigger()
+    for _ in range(3):  # warm-up: the kernels are compiled, numba's caches filled
+        voice.process(block, out=buffer)
+    tracemalloc.start()
+    try:
+        before, _ = tracemalloc.get_traced_memory()
+        for _ in range(600):  # 12.8 s at 48 kHz: past the bow's lift (0.05 + 0.1 + 0.5 + 0.05 s)
+            voice.process(block, out=buffer)
+        after, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert after - before < 1024 and peak - before < 4096, (after - before, peak - before)
+    assert voice._bow.lifted_at < 603 * block
+
+
+def test_process_into_a_buffer_gives_the_samples_of_a_new_array():
+    p = {"excitation": "bow", "bow_duration_s": 0.05}
+    fresh, into = MODEL.voice(p, max_block=256), MODEL.voice(p, max_block=256)
+    fresh.trigger()
+    into.trigger()
+    buffer = np.empty(256, dtype=np.float32)
+    for _ in range(40):
+        assert np.array_equal(into.process(256, out=buffer), fresh.process(256))
+
+
+def test_a_refused_change_keeps_the_voice_as_it_was():
+    voice = MODEL.voice({"tuning": "ratios", "frequency_hz": 440.0}, sample_rate=48000)
+    voice.trigger()
+    voice.process(100)
+    twin = MODEL.voice({"tuning": "ratios", "frequency_hz": 440.0}, sample_rate=48000)
+    twin.trigger()
+    twin.process(100)
+    with pytest.raises(ParameterError, match="no mode of this object"):
+        voice.set_parameters(frequency_hz=5000.0, mode_ratios=(4.0,))
+    assert voice.parameters == twin.parameters
+    assert np.array_equal(voice.process(2000, dtype=np.float64), twin.process(2000, dtype=np.float64))
+
+
+def test_a_change_of_the_set_of_modes_keeps_what_rings_ringing():
+    """Fewer modes, then more (new loops, no new strike): the modes that stay keep their state,
+    so the bar rings on at a similar level instead of falling silent."""
+    p = {"tuning": "ratios", "frequency_hz": 300.0, "mode_ratios": (1.0, 2.7, 5.1), "mode_t60s_s": (2.0, 1.0, 0.5)}
+    voice = MODEL.voice(p, sample_rate=48000)
+    voice.trigger()
+    before = voice.process(4800, dtype=np.float64)
+    voice.set_parameters(frequency_hz=2400.0)  # the third mode (12.2 kHz) goes above a quarter of the rate
+    after = voice.process(4800, dtype=np.float64)
+    voice.set_parameters(frequency_hz=300.0)  # and comes back, silent
+    again = voice.process(4800, dtype=np.float64)
+    assert list(voice._bank.modes) == [0, 1, 2]
+    level = np.abs(before[-480:]).max()
+    assert 0.3 * level < np.abs(after[:480]).max() < 2 * level
+    assert 0.1 * level < np.abs(again[:480]).max() < 2 * level

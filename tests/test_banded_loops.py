@@ -15,25 +15,28 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from barsynth.analysis import measure_partial
-from barsynth.dsp import banded_kernel as K
-from barsynth.dsp.banded import design_loop
+from barsynth.models.banded import kernel as K
+from barsynth.models.banded.design import design_loop, loop_records
 
 
 def bank(designs, input_weights=None, output_weights=None):
-    coeffs = np.zeros((len(designs), K.N_COEFFS))
-    for k, d in enumerate(designs):
-        coeffs[k, [K.C_B0, K.C_A1, K.C_A2, K.C_ETA, K.C_GAIN]] = d.bp_b0, d.bp_a1, d.bp_a2, d.eta, d.gain
-        coeffs[k, K.C_IN] = d.input_scale * (1.0 if input_weights is None else input_weights[k])
-        coeffs[k, K.C_OUT] = 1.0 if output_weights is None else output_weights[k]
-    delays = np.array([d.delay for d in designs], dtype=np.int64)
-    return coeffs, delays
+    """The kernel's loops for ``designs``, with per-loop input and output weights (1 by default)."""
+    loops = loop_records(designs)
+    if input_weights is not None:
+        loops["force_in"] *= np.array(input_weights)
+    if output_weights is not None:
+        loops["out"] = output_weights
+    return loops
+
+
+def run(out, force, loops, state):
+    K.process(out, force, 0.0, loops, state.filters, state.buffers, state.position)
 
 
 def impulse_response(design, seconds):
-    coeffs, delays = bank([design])
-    buffers, states, position = K.empty_bank(1, int(delays.max()))
+    loops = bank([design])
     out = np.empty(int(seconds * design.sample_rate))
-    K.process(out, np.array([1.0]), 0.0, coeffs, delays, buffers, states, position)
+    run(out, np.array([1.0]), loops, K.empty_state(1, design.delay))
     return out
 
 
@@ -87,18 +90,19 @@ def test_loops_that_cannot_be_designed_are_refused(frequency, t60, rate):
 def test_blocks_of_any_size_give_the_same_samples():
     rate = 44100
     designs = [design_loop(f, t, rate) for f, t in ((110.0, 2.0), (303.2, 1.0), (2000.0, 0.4), (9000.0, 0.2))]
-    coeffs, delays = bank(designs, input_weights=[1.0, -0.5, 0.8, 0.3], output_weights=[1.0, 0.7, -0.4, 0.2])
+    loops = bank(designs, input_weights=[1.0, -0.5, 0.8, 0.3], output_weights=[1.0, 0.7, -0.4, 0.2])
     rng = np.random.default_rng(3)
     force = np.zeros(20000)
     force[[0, 5000, 5001, 12000]] = 1.0, 0.5, -0.25, 2.0
     whole = np.empty(force.size)
-    K.process(whole, force, 0.0, coeffs, delays, *K.empty_bank(4, int(delays.max())))
-    buffers, states, position = K.empty_bank(4, int(delays.max()))
+    longest = int(loops["delay"].max())
+    run(whole, force, loops, K.empty_state(4, longest))
+    state = K.empty_state(4, longest)
     pieces, start = [], 0
     while start < force.size:
         n = int(rng.integers(1, 700))
         out = np.empty(min(n, force.size - start))
-        K.process(out, force[start:start + out.size], 0.0, coeffs, delays, buffers, states, position)
+        run(out, force[start:start + out.size], loops, state)
         pieces.append(out)
         start += out.size
     assert np.array_equal(np.concatenate(pieces), whole)

@@ -17,6 +17,8 @@ MODULES = [
     "barsynth.models.farnell",
     "barsynth.models.farnell.voice",
     "barsynth.models.banded",
+    "barsynth.models.banded.voice",
+    "barsynth.models.banded.design",
     "barsynth.models.allpass",
     "barsynth.models.allpass.design",
     "barsynth.models.allpass.voice",

@@ -1,0 +1,94 @@
+"""The banded model's one parameter table and its typed record, :class:`BandedParams`.
+
+The mallet, pluck and bow rows are the exciters' own (:mod:`barsynth.exciters`); the bar's
+material and size rows are shared with the other bar models (:mod:`barsynth.parameters`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ...exciters import STRUCK_OR_PLUCKED, Bow, Pluck, Strike
+from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable, bar_size_parameters, level_parameter
+
+MAX_MODES = 24
+"""The most modes (loops) an object may have."""
+MIN_Q = 3.0
+"""The lowest quality factor of a mode: below it a mode is no ringing loop (see design.py)."""
+
+PHYSICS = {"tuning": ("physics",)}
+RATIOS = {"tuning": ("ratios",)}
+
+
+@dataclass(frozen=True, kw_only=True)
+class BandedParams:
+    """Resolved parameters of the banded model (units and ranges: :data:`BANDED_TABLE`)."""
+
+    tuning: str
+    youngs_modulus_pa: float
+    density_kg_m3: float
+    material: str
+    length_m: float
+    thickness_m: float
+    width_m: float
+    mode_count: int
+    frequency_hz: float
+    mode_ratios: tuple[float, ...]
+    mode_t60s_s: tuple[float, ...]
+    q: float
+    shape: str
+    mass_kg: float
+    excitation: str
+    strike_position: float
+    pickup_position: float
+    mallet_hardness: float
+    mallet_velocity_m_s: float
+    mallet_mass_kg: float
+    pluck_displacement_mm: float
+    release_time_ms: float
+    bow_position: float
+    bow_velocity_m_s: float
+    bow_force_n: float
+    bow_duration_s: float
+    bow_ramp_ms: float
+    level_db: float
+
+
+BANDED_TABLE = ParameterTable(
+    "banded",
+    [
+        Parameter("tuning", "", None, None, "physics",
+                  "where the modes come from: physics (a uniform free-free bar of the material and size "
+                  "below) or ratios (frequency_hz x mode_ratios, with mode_t60s_s)",
+                  kind=CHOICE, choices=("physics", "ratios")),
+        *bar_size_parameters("tuning = physics: ", PHYSICS),
+        Parameter("mode_count", "", 1, MAX_MODES, 4, "tuning = physics: how many modes", kind=INT, when=PHYSICS),
+        Parameter("frequency_hz", "Hz", 20.0, 5000.0, 220.0, "tuning = ratios: the fundamental", scale="log",
+                  when=RATIOS),
+        Parameter("mode_ratios", "", 0.25, 200.0, (1.0, 4.0, 10.0),
+                  "tuning = ratios: each mode's frequency / frequency_hz", kind=FLOATS, max_items=MAX_MODES,
+                  when=RATIOS),
+        Parameter("mode_t60s_s", "s", 0.005, 120.0, (),
+                  "T60 of the first modes, in order (the rest follow q)", kind=FLOATS, max_items=MAX_MODES),
+        Parameter("q", "", MIN_Q, 10000.0, 300.0,
+                  "quality factor of every mode without its own T60: T60 = Q ln(1000) / (pi f)", scale="log"),
+        Parameter("shape", "", None, None, "bar",
+                  "tuning = ratios: mode shapes for positions: bar (free-free bending modes) or ring "
+                  "(cos(n 2 pi x), n = 2, 3, ... around a glass or bowl)", kind=CHOICE, choices=("bar", "ring"),
+                  when=RATIOS),
+        Parameter("mass_kg", "kg", 0.001, 100.0, 0.3, "tuning = ratios: the object's mass", scale="log", when=RATIOS),
+        Parameter("excitation", "", None, None, "strike",
+                  "what a trigger does: strike (a mallet), bow (a bow stroke) or pluck (a release)",
+                  kind=CHOICE, choices=("strike", "bow", "pluck")),
+        Parameter("strike_position", "", 0.0, 1.0, 0.1,
+                  "where it is struck or plucked: fraction of the length (bar) or of the circumference (ring)",
+                  when=STRUCK_OR_PLUCKED),
+        Parameter("pickup_position", "", 0.0, 1.0, 0.0,
+                  "where its velocity is picked up, as strike_position"),
+        *Strike.parameters(),
+        *Pluck.parameters(),
+        *Bow.parameters(),
+        level_parameter(),
+    ],
+    record=BandedParams,
+)

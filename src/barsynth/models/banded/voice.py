@@ -1,0 +1,98 @@
+"""The banded voice: a bank of loops (one per mode) driven by a strike, a pluck or a bow.
+
+Source: G. Essl and P. R. Cook, "Banded waveguides: towards physical modeling of bowed bar
+percussion instruments", Proc. ICMC 1999 (barsynth spec 3.1); the mallet after A. Chaigne
+and V. Doutaut, JASA 101 (1997).
+
+The resonator is :mod:`.design` (modes and loops) run by :mod:`.kernel`; the exciters are
+:mod:`barsynth.exciters`': a strike's and a pluck's forces are known in advance (uncoupled:
+they are added to a :class:`~barsynth.exciters.ForceQueue` the kernel plays out), a bow's
+friction depends on the bar's velocity under it (coupled: the bowed kernel solves it each
+sample from the :class:`~barsynth.exciters.Bow`'s lines). A new strike, stroke or pluck adds
+to whatever still rings: nothing is cleared. The output is the object's velocity at the
+pick-up point (m/s) times ``level_db``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...exciters import Bow, ForceQueue, Pluck, Strike
+from ..base import Voice
+from . import kernel as K
+from .design import BankDesign, design_bank
+from .table import BandedParams
+
+
+class BandedVoice(Voice):
+    """Streaming banded-waveguide voice: ``prepare`` / ``reset`` / ``trigger`` / ``release`` /
+    ``set_parameters`` / ``process``.
+
+    Examples
+    --------
+    >>> voice = BandedVoice({"tuning": "ratios", "frequency_hz": 440}, sample_rate=48000, max_block=256)
+    >>> voice.trigger()
+    >>> block = voice.process(256)
+    >>> block.shape, bool(abs(block).max() > 0)
+    ((256,), True)
+    """
+
+    can_release = True  # a bow stroke stops
+
+    _params: BandedParams
+    _bank: BankDesign
+    _state: K.LoopState
+    _forces: ForceQueue
+    _bow: Bow
+
+    def _prepare(self) -> None:
+        """Design the loops for ``self.sample_rate`` (raises for an object with no mode that can sound)."""
+        self._bank = design_bank(self._params, self.sample_rate)
+
+    def _reset(self) -> None:
+        """Silence: every loop emptied, no force pending, the bow off the bar."""
+        self._state = K.empty_state(len(self._bank.modes), self._bank.longest_delay)
+        self._forces = ForceQueue()
+        self._bow = Bow(self._params, self.sample_rate)
+
+    def _update(self, old: BandedParams) -> None:
+        """The loops are redesigned at once; what rings keeps ringing, a new bow setting glides."""
+        bank, previous = design_bank(self._params, self.sample_rate), self._bank
+        self._bank = bank
+        if not (np.array_equal(bank.modes, previous.modes)
+                and self._state.buffers.shape[1] >= bank.longest_delay + 2):
+            self._state = K.carried_over(self._state, previous.modes, bank.modes, bank.longest_delay)
+        self._bow.update(self._params)
+
+    def trigger(self) -> None:
+        """Strike, start a bow stroke, or pluck now, on top of whatever still rings."""
+        p = self._params
+        if p.excitation == "bow":
+            self._bow.start()
+        elif p.excitation == "strike":
+            self._forces.add(Strike(p).force(self.sample_rate), 0.0)
+        else:  # pluck: the force that holds the strike point out, then let go
+            self._forces.add(*Pluck(p).force(self._bank.strike_point, self.sample_rate))
+
+    def release(self) -> None:
+        """Stop a bow stroke now: the bow slows to rest, damps the bar, and is lifted.
+        (A bow that is not moving, a strike or a pluck is left as it is.)"""
+        self._bow.stop()
+
+    def _render(self, out: np.ndarray) -> None:
+        """``out.size`` samples of velocity at the pick-up (m/s) times the level. The bowed
+        kernel runs exactly while the bow touches; nothing is allocated."""
+        n, bow, forces = out.size, self._bow, self._forces
+        now = bow.now
+        bowed = min(n, max(0, bow.lifted_at - now))
+        loops, state = self._bank.loops, self._state
+        if bowed:
+            K.process_bowed(out if bowed == n else out[:bowed], forces.pending, forces.held, bow.lines, now,
+                            loops, state.filters, state.buffers, state.position, state.work)
+        if bowed < n:
+            pending = forces.pending if bowed == 0 else forces.from_sample(bowed)
+            K.process(out if bowed == 0 else out[bowed:], pending, forces.held, loops, state.filters,
+                      state.buffers, state.position)
+        bow.now = now + n
+        if forces.pending.size:
+            forces.advance(n)
