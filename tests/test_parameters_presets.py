@@ -153,7 +153,7 @@ def test_when_says_under_which_settings_a_parameter_acts():
 
 
 def test_a_material_sets_youngs_modulus_and_density():
-    from barsynth.models.shared import material_parameter
+    from barsynth.models.rows import material_parameter
     from barsynth.physics import material
 
     table = ParameterTable("x", [Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 1e9, "E", scale="log"),

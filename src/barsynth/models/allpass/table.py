@@ -10,7 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...exciters import STRUCK_OR_PLUCKED, Pluck, Strike
-from ...parameters import CHOICE, INT, Parameter, ParameterTable, bar_size_parameters, level_parameter
+from ...parameters import CHOICE, INT, Parameter, ParameterTable
+from ..rows import bar_size_parameters, level_parameter
 from ...physics.boundary import BOUNDARY_CONDITIONS
 
 

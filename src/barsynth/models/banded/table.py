@@ -9,7 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...exciters import STRUCK_OR_PLUCKED, Bow, Pluck, Strike
-from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable, bar_size_parameters, level_parameter
+from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
+from ..rows import bar_size_parameters, level_parameter
 
 MAX_MODES = 24
 """The most modes (loops) an object may have."""

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...parameters import BOOL, CHOICE, Parameter, ParameterTable, material_parameter
+from ...parameters import BOOL, CHOICE, Parameter, ParameterTable
+from ..rows import material_parameter
 
 
 @dataclass(frozen=True, kw_only=True)
