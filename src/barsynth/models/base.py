@@ -191,7 +191,8 @@ class Model:
     reports_reference_errors: ClassVar[bool] = False
 
     def __init__(self) -> None:
-        self.voice_class.model = self
+        if self.voice_class.model is None:  # the first instance (the registry's MODEL) is the voices' model
+            self.voice_class.model = self
 
     @property
     def params(self) -> ParameterTable:

@@ -49,7 +49,7 @@ from ``targets``, ``plan``, ``loss``, ``fitting`` and ``injection``), ``kernel``
 Examples
 --------
 >>> import numpy as np
->>> model = AllpassModel()
+>>> model = MODEL
 >>> modes = model.describe({"bc": "clamped-free"}, sample_rate=48000)
 >>> [(m.group, round(m.frequency_hz, 1)) for m in modes[:3]]
 [('fitted', 90.7), ('fitted', 568.6), ('fitted', 1592.2)]
