@@ -51,8 +51,8 @@ def _run_without(blocked: tuple[str, ...], *args: str, cwd: Path) -> subprocess.
     code = ("import sys\n"
             f"for name in {blocked!r}: sys.modules[name] = None\n"
             f"sys.argv = ['barsynth', *{list(args)!r}]\n"
-            "from barsynth.cli import main\n"
-            "main()\n")
+            "from barsynth.entry import run\n"
+            "run()\n")
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=cwd, timeout=120)
 
 

@@ -179,8 +179,10 @@ def materials() -> None:
 
 # -- models -----------------------------------------------------------------------------
 def _model(name: str):
+    from .jitstart import defer_blas_probe
     from .models import get_model
 
+    defer_blas_probe()  # before the first kernel runs: spares a SciPy import (see jitstart)
     return get_model(name)
 
 
