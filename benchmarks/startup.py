@@ -65,8 +65,13 @@ from pathlib import Path
 MODELS = ("twang", "farnell", "banded", "allpass", "fd")
 
 BREAKDOWN = r"""
-import sys, time
+import os, sys, time
 t0 = time.perf_counter()
+try:  # the program (barsynth.entry) keeps OpenBLAS to one thread: so does this imitation of it
+    import barsynth.entry
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+except ImportError:
+    pass
 marks = []
 def mark(name):
     marks.append((name, time.perf_counter()))

@@ -28,6 +28,7 @@ MODULES = [
     "barsynth.analysis.search",
     "barsynth.analysis.plots",
     "barsynth.parameters",
+    "barsynth.extras",
 ]
 
 
