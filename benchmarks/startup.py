@@ -24,27 +24,36 @@ package has its ``.pyc`` files (pip compiles them), and a run from a source tree
 too, else every run compiles barsynth's sources again. Give ``--python`` an installed
 venv's Python to measure an install; with PYTHONPATH=src it measures the source tree.
 
-Figures on 2026-11-25 (2-core AMD EPYC VM, shared and noisy: medians of 9-15 runs; the
-machine was busy, so wall times are +-10 %; CPU seconds are steadier)::
+Figures of 2026-11-25 (2-core AMD EPYC VM shared with other work, load 3-7: wall times
+swing by +-30 %, CPU seconds are steadier; medians of 7-15 whole processes; "before" is
+commit cc8cf22, "after" this branch; numba 0.68.1, NumPy 2.4.6, Python 3.11.7)::
 
-                                       before (cc8cf22)    after (this branch)
-  warm render twang --duration 1        1.08 s wall         0.45 s wall (0.44 s CPU)
-  warm render, --duration 0.5:
-      twang / farnell / banded          ~1.0 s each         0.43 / 0.43 / 0.45 s
-      allpass / fd                      ~1.1 / 1.1 s        0.48 / 0.58 s
-  first render after install, 1 core:
-      twang                             6.7 s CPU           6.4 s   (numba compiles 11 overloads)
-      farnell / banded / allpass        1.1 / 1.2 / 1.8 s   about the same
-      fd                                4.4 s               about the same
-  peak memory (twang render)            158.5 MiB           124 MiB
+                                       before                after
+  warm render twang --duration 1       1.08 s wall, 1.28 CPU  0.54 s wall, 0.54 CPU
+      (paired A/B runs under load: after/before = 0.49-0.56 of the wall time)
+  warm render --duration 0.5, CPU s:
+      twang / farnell / banded         0.99 / 1.08 / 0.94     0.48 / 0.51 / 0.50
+      allpass / fd                     1.13 / 1.54            0.64 / 1.16
+  first render after install, CPU s (one core; wall 2-3x that under the load):
+      twang                            8.9 (6.7 quieter)      7.7 (6.4 quieter)
+      farnell / banded / allpass       1.6 / 1.85 / 2.9       1.3 / 1.45 / 1.8
+      fd                               5.95                   4.4
+  peak memory (max RSS), MiB:
+      twang / farnell / banded         158.8 / 155.9 / 157.6  146.9 / 143.9 / 145.7
+      allpass / fd                     160.3 / 206.2          148.3 / 206.0
 
-  where a warm twang render's time goes (after; in-process, ms):
-      Python start ~17, NumPy ~60, numba ~150, barsynth.cli ~25, model module ~25,
-      numba's CPU target + loading 2 cached kernels ~140, render 1 s ~1.5, writing ~6,
-      exit ~10.
-  what the changes took away: numba's BLAS probe importing scipy.linalg (~150 ms,
-  ~12 MiB), OpenBLAS starting a thread per core (~50 ms), the interpreter's tear-down
-  after numba (~200 ms).
+  where a warm render twang --duration 1 goes (after; in-process medians, ms):
+      Python start 11, import NumPy 63, import numba 178, barsynth.cli (mostly click) 29,
+      numba.np.arraymath etc. (jitstart) 36, the model module 15, numba's CPU target
+      (registries; cffi/pycparser 15-40, numpy.ma 15-30) + loading the 2 cached kernels
+      149, rendering 1 s 1.2, writing the WAV 10; the exit ~0 (skipped tear-down).
+  taken away: numba's BLAS probe importing scipy.linalg (~150 ms, 12 MiB), OpenBLAS
+  starting a thread per core at NumPy's import (~50 ms on 2 cores), the interpreter's
+  tear-down after numba (~200 ms).
+  still there, in models/ and dsp/: fd imports scipy.signal (for firwin: ~0.9 s CPU and
+  ~50 MiB the first time) and scipy.linalg (eig_banded) on every render; allpass fits its
+  all-pass chains (Levenberg-Marquardt in Python, ~0.1-0.27 s) on every render; twang
+  compiles its biggest kernel twang_kernel._render twice (for Literal[int](0) and int64).
 
 The first-render figures are the kernels' compile times; they are the models' to reduce
 (see the report of the "lighter start and install" work).
@@ -119,7 +128,7 @@ def run_once(cmd: list[str], *, env: dict[str, str], cwd: str, cpu: int | None =
     preexec = (lambda: os.sched_setaffinity(0, {cpu})) if cpu is not None else None
     start = time.perf_counter()
     child = subprocess.Popen(cmd, env=env, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                             preexec_fn=preexec)
+                             preexec_fn=preexec)  # noqa: PLW1509 - no threads here
     _, status, usage = os.wait4(child.pid, 0)
     wall = time.perf_counter() - start
     err = child.stderr.read().decode(errors="replace")
@@ -199,8 +208,9 @@ def main() -> None:
     args = parser.parse_args()
     python = args.python
     work = tempfile.mkdtemp(prefix="barsynth-startup-")
-    version = subprocess.run([python, "-c", "import barsynth, numba, numpy, sys; print(barsynth.__file__, "
-                              "'numba', numba.__version__, 'numpy', numpy.__version__, sys.version.split()[0])"],
+    probe = ("import barsynth, numba, numpy, sys; print(barsynth.__file__, "
+             "'numba', numba.__version__, 'numpy', numpy.__version__, sys.version.split()[0])")
+    version = subprocess.run([python, "-c", probe],
                              env=_env(), capture_output=True, text=True, check=True).stdout.strip()
     print(f"barsynth start-up, {time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores; {version}")
 

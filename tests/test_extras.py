@@ -53,7 +53,8 @@ def _run_without(blocked: tuple[str, ...], *args: str, cwd: Path) -> subprocess.
             f"sys.argv = ['barsynth', *{list(args)!r}]\n"
             "from barsynth.entry import run\n"
             "run()\n")
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=cwd, timeout=120)
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=cwd, timeout=120,
+                          check=False)
 
 
 def _one_line(result: subprocess.CompletedProcess, install: str) -> str:

@@ -29,7 +29,7 @@ def defer_blas_probe() -> bool:
     if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
         return False
     try:
-        import numba.np.linalg as linalg
+        from numba.np import linalg
     except ImportError:  # pragma: no cover - numba is a requirement
         return False
     real = getattr(linalg, "ensure_blas", None)
@@ -41,8 +41,8 @@ def defer_blas_probe() -> bool:
 
     linalg.ensure_blas = blas_is_there
     try:
-        import numba.np.arraymath as arraymath
-    except Exception:  # pragma: no cover - another numba; it will load as usual later
+        from numba.np import arraymath
+    except Exception:  # noqa: BLE001 # pragma: no cover - another numba; it will load as usual later
         return False
     finally:
         linalg.ensure_blas = real
