@@ -201,4 +201,14 @@ def test_checks_imports_only_the_standard_library_numpy_and_errors():
             imported.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
             imported.add("." * node.level + (node.module or ""))
-    assert imported <= {"__future__", "math", "os", "stat", "collections.abc", "numpy", ".errors"}
+    assert imported <= {"__future__", "math", "os", "stat", "sys", "typing", "collections.abc", "numpy", ".errors"}
+
+
+def test_importing_checks_does_not_load_numpy():
+    """NumPy loads in check_array only (a NumPy scalar cannot exist before NumPy is loaded)."""
+    import subprocess
+    import sys
+
+    code = "import sys, barsynth.checks as c; c.check_number('q', 2, ''); print('numpy' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False"]

@@ -35,6 +35,7 @@ MODULES = [
     "barsynth.analysis.search",
     "barsynth.analysis.plots",
     "barsynth.parameters",
+    "barsynth.extras",
 ]
 
 

@@ -1,5 +1,5 @@
 """``python -m barsynth``: the command-line tool."""
 
-from .cli import main
+from .entry import run
 
-main()
+run()

@@ -19,9 +19,10 @@ device or a socket at once (reading one would hang or never end; writing one wou
 replace it), and :func:`show_text` shortens what a message quotes of a user's text
 (a name, a path) to at most 80 characters.
 
-This module imports only NumPy, :mod:`barsynth.errors`, :mod:`os`, :mod:`stat` and
-(for type hints) :mod:`collections.abc`, so any part of barsynth may use it without
-slowing its import.
+This module imports only :mod:`barsynth.errors`, :mod:`math`, :mod:`os`, :mod:`stat`,
+:mod:`sys` and (for type hints) :mod:`collections.abc`, so any part of barsynth may use it
+without slowing its import. NumPy loads only in :func:`check_array`; a NumPy scalar is
+recognised without importing NumPy (none can exist before NumPy is loaded).
 """
 
 from __future__ import annotations
@@ -31,16 +32,38 @@ from collections.abc import Callable, Sequence
 import math
 import os
 import stat
-
-import numpy as np
+import sys
+from typing import TYPE_CHECKING
 
 from .errors import ParameterError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["check_array", "check_choice", "check_input_file", "check_number", "check_output_file",
            "check_whole", "file_kind", "number_within", "show_text", "show_value"]
 
-_REAL_TYPES = (int, float, np.integer, np.floating)  # bool is an int: excluded separately
 _MAX_SHOWN = 80  # longest repr of a value quoted in a message
+
+
+def _numpy_types(*names: str) -> tuple[type, ...]:
+    """NumPy's scalar types ``names`` (e.g. "integer") if NumPy is loaded, else none."""
+    np = sys.modules.get("numpy")
+    return tuple(getattr(np, name) for name in names) if np is not None else ()
+
+
+def _is_bool(value: object) -> bool:
+    return isinstance(value, (bool, *_numpy_types("bool_")))
+
+
+def _is_int(value: object) -> bool:
+    """An int or NumPy integer (and a bool, which is an int: exclude it separately)."""
+    return isinstance(value, (int, *_numpy_types("integer")))
+
+
+def _is_real(value: object) -> bool:
+    """An int, float, NumPy integer or NumPy floating (and a bool: exclude it separately)."""
+    return isinstance(value, (int, float, *_numpy_types("integer", "floating")))
 
 
 def _show(value: object) -> str:
@@ -112,7 +135,7 @@ def check_output_file(path: object, what: str) -> None:
 
 
 def _bound(value: float) -> str:
-    return str(value) if isinstance(value, (int, np.integer)) else f"{value:g}"
+    return str(value) if _is_int(value) else f"{value:g}"
 
 
 def _allowed(
@@ -144,8 +167,13 @@ def _within(
     minimum_exclusive: bool,
     maximum_exclusive: bool,
 ):
-    """Elementwise: finite and inside the range (a NumPy bool or bool array)."""
-    ok = np.isfinite(values)
+    """Elementwise: finite and inside the range (a bool for a float, else a NumPy bool or bool array)."""
+    if isinstance(values, float):
+        ok = math.isfinite(values)
+    else:
+        import numpy as np
+
+        ok = np.isfinite(values)
     if minimum is not None:
         ok = ok & (values > minimum if minimum_exclusive else values >= minimum)
     if maximum is not None:
@@ -175,7 +203,7 @@ def check_number(
     """
     allowed = _allowed(unit, minimum, maximum, minimum_exclusive, maximum_exclusive)
     number: float | None = None
-    if isinstance(value, _REAL_TYPES) and not isinstance(value, (bool, np.bool_)):
+    if _is_real(value) and not _is_bool(value):
         try:
             number = float(value)
         except OverflowError:  # an int beyond float range: out of any range
@@ -211,9 +239,9 @@ def check_whole(
     """
     allowed = _allowed(unit, minimum, maximum, False, False, whole=True)
     number: int | None = None
-    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+    if _is_int(value) and not isinstance(value, bool):
         number = int(value)
-    elif integral_floats and isinstance(value, (float, np.floating)) and float(value).is_integer():
+    elif integral_floats and isinstance(value, (float, *_numpy_types("floating"))) and float(value).is_integer():
         number = int(value)
     if number is None:
         raise ParameterError(f"parameter {name} = {_show(value)} is not a whole number; {allowed}")
@@ -242,6 +270,8 @@ def check_array(
     >>> check_array("x", [0.0, 0.5], "", minimum=0.0, maximum=1.0)
     array([0. , 0.5])
     """
+    import numpy as np
+
     allowed = _allowed(unit, minimum, maximum, minimum_exclusive, maximum_exclusive)
     try:
         raw = np.asarray(value)
@@ -298,9 +328,9 @@ def number_within(value: object, low: float, high: float, *, whole: bool = False
     >>> number_within(10 ** 400, 16, 4096, whole=True), number_within(3.0, 1, 5, whole=True)
     (False, True)
     """
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, _REAL_TYPES):
+    if _is_bool(value) or not _is_real(value):
         return False
-    if isinstance(value, (int, np.integer)):
+    if _is_int(value):
         return low <= value <= high
     number = float(value)
     return math.isfinite(number) and (not whole or number.is_integer()) and low <= number <= high

@@ -11,11 +11,8 @@ Heavy modules are imported inside the commands, so ``barsynth --help`` is quick.
 
 from __future__ import annotations
 
-import json
-import math
 import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +21,7 @@ import click
 from .audio_io import SUBTYPES
 from .checks import show_text
 from .errors import BarsynthError, ParameterError
+from .extras import require
 
 
 INTERRUPTED_STATUS = 130  # 128 + SIGINT, as shells report a process that Ctrl-C stopped
@@ -88,6 +86,8 @@ class _Group(click.Group):
 
 
 def _json_out(data: Any) -> None:
+    import json
+
     click.echo(json.dumps(data, indent=2, allow_nan=False, default=_json_default))
 
 
@@ -238,8 +238,10 @@ class _ModelCommand(click.Command):
 
 
 def _model(name: str):
+    from .jitstart import defer_blas_probe
     from .models import get_model
 
+    defer_blas_probe()  # before the first kernel runs: spares a SciPy import (see jitstart)
     return get_model(name)
 
 
@@ -364,6 +366,8 @@ def _write_all(jobs: list[tuple[Path, Any]]) -> None:
     then rename them all: a failure anywhere (or a Ctrl-C) leaves no new or partial file behind.
     A symbolic link is followed (its target is replaced); an existing file keeps its
     permissions, a new one gets the usual 0666 less the umask."""
+    import tempfile
+
     from .checks import check_output_file
 
     for path, _ in jobs:  # a FIFO or device is never replaced by a file
@@ -519,6 +523,7 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
         if plot_path.suffix.lower() != ".png":
             raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
         _check_writable_dir(plot_path, "plot")
+        require("plot", "--plot")
     import numpy as np
 
     file_subtype = output_subtype(fmt, subtype, rate, output.suffix or ".wav")
@@ -617,6 +622,7 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
     Example:
       barsynth bow-map banded --preset vibraphone -o vibraphone-bow.png
     """
+    require("plot", "barsynth bow-map")
     import numpy as np
 
     from .analysis.bowing import bow_map as measure_bow_map
@@ -665,6 +671,8 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
               help="Also draw a waveform + spectrogram PNG with the partials marked.")
 def analyze(path, as_json, max_partials, plot_path):
     """Find a sound's partials: frequency, level, T60, and ratios to the lowest."""
+    import math
+
     from .analysis import find_partials, partial_ratios
     from .audio_io import load_audio
     from .jsonout import json_number
@@ -675,6 +683,7 @@ def analyze(path, as_json, max_partials, plot_path):
         if plot_path.suffix.lower() != ".png":
             raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
         _check_writable_dir(plot_path, "plot")
+        require("plot", "--plot")
     samples, rate = load_audio(path)
     partials = find_partials(samples, rate, max_partials=max_partials)
     ratios = partial_ratios(partials) if partials else []
@@ -736,7 +745,9 @@ def studio(host, port):
     """Every model in the browser: sliders that change the sound as it plays, pictures, WAV and preset downloads.
 
     Prints the address to open; Ctrl-C stops it. See docs/studio.md.
+    Needs the web stack: pip install 'barsynth[studio]'.
     """
+    require("studio", "barsynth studio")
     from .studio.server import serve
 
     serve(host=host, port=port, echo=click.echo)
@@ -759,7 +770,9 @@ def listen_serve(config, results, host, port):
 
     Every clip is loaded or rendered and checked before the server starts; each
     answer is written to RESULTS.db the moment it is submitted.
+    Needs the web stack: pip install 'barsynth[studio]'.
     """
+    require("studio", "barsynth listen serve")
     from .checks import check_input_file
     from .listening.server import serve
     from .listening.store import check_results_file
@@ -787,6 +800,7 @@ def listen_report(results, csv_dir, plot_path, holm_correction):
         raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
     if plot_path is not None:
         _check_writable_dir(plot_path, "plot")
+        require("plot", "--plot")
     if csv_dir is not None:
         from .checks import check_output_file
 

@@ -1,0 +1,250 @@
+"""How long `barsynth render` takes from the shell, and where the time goes (run by hand).
+
+    python benchmarks/startup.py                      # everything, with this Python
+    python benchmarks/startup.py --runs 9 --skip-cold
+    python benchmarks/startup.py --python .venv/bin/python --models twang fd
+
+Every figure is a whole process (`PYTHON -m barsynth ...`), timed from outside: wall time
+around the child, its CPU time and peak memory from ``os.wait4`` (the same accounting as
+``resource.getrusage(RUSAGE_CHILDREN)``, but per child); medians of ``--runs`` runs after
+one warm-up run. It reports
+
+(a) warm renders: ``render twang --duration 1`` and every model at ``--duration 0.5``,
+    numba's on-disk cache filled by the warm-up run;
+(b) the first render after an install: ``NUMBA_CACHE_DIR`` pointed at a new empty folder
+    for each run (the kernels use ``cache=True``), pinned to one core (``--no-pin``: not);
+(c) where the time goes: the top imports of ``python -X importtime`` and a breakdown
+    measured inside one process: Python's start, importing NumPy and numba, the CLI and
+    the model, loading the cached kernels (the first call, minus a second call's pure
+    render), rendering, writing the file, and the rest (the interpreter's exit);
+(d) peak memory (max RSS) of each render.
+
+``PYTHONDONTWRITEBYTECODE`` is dropped from the children's environment: an installed
+package has its ``.pyc`` files (pip compiles them), and a run from a source tree should
+too, else every run compiles barsynth's sources again. Give ``--python`` an installed
+venv's Python to measure an install; with PYTHONPATH=src it measures the source tree.
+
+Figures of 2026-11-25 (2-core AMD EPYC VM shared with other work, load 3-7: wall times
+swing by +-30 %, CPU seconds are steadier; medians of 7-15 whole processes; "before" is
+commit cc8cf22, "after" this branch; numba 0.68.1, NumPy 2.4.6, Python 3.11.7)::
+
+                                       before                after
+  warm render twang --duration 1       1.08 s wall, 1.28 CPU  0.54 s wall, 0.54 CPU
+      (paired A/B runs under load: after/before = 0.49-0.56 of the wall time)
+  warm render --duration 0.5, CPU s:
+      twang / farnell / banded         0.99 / 1.08 / 0.94     0.48 / 0.51 / 0.50
+      allpass / fd                     1.13 / 1.54            0.64 / 1.16
+  first render after install, CPU s (one core; wall 2-3x that under the load):
+      twang                            8.9 (6.7 quieter)      7.7 (6.4 quieter)
+      farnell / banded / allpass       1.6 / 1.85 / 2.9       1.3 / 1.45 / 1.8
+      fd                               5.95                   4.4
+  peak memory (max RSS), MiB:
+      twang / farnell / banded         158.8 / 155.9 / 157.6  146.9 / 143.9 / 145.7
+      allpass / fd                     160.3 / 206.2          148.3 / 206.0
+
+  where a warm render twang --duration 1 goes (after; in-process medians, ms):
+      Python start 11, import NumPy 63, import numba 178, barsynth.cli (mostly click) 29,
+      numba.np.arraymath etc. (jitstart) 36, the model module 15, numba's CPU target
+      (registries; cffi/pycparser 15-40, numpy.ma 15-30) + loading the 2 cached kernels
+      149, rendering 1 s 1.2, writing the WAV 10; the exit ~0 (skipped tear-down).
+  taken away: numba's BLAS probe importing scipy.linalg (~150 ms, 12 MiB), OpenBLAS
+  starting a thread per core at NumPy's import (~50 ms on 2 cores), the interpreter's
+  tear-down after numba (~200 ms).
+  still there, in models/ and dsp/: fd imports scipy.signal (for firwin: ~0.9 s CPU and
+  ~50 MiB the first time) and scipy.linalg (eig_banded) on every render; allpass fits its
+  all-pass chains (Levenberg-Marquardt in Python, ~0.1-0.27 s) on every render; twang
+  compiles its biggest kernel twang_kernel._render twice (for Literal[int](0) and int64).
+
+The first-render figures are the kernels' compile times; they are the models' to reduce
+(see the report of the "lighter start and install" work).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+MODELS = ("twang", "farnell", "banded", "allpass", "fd")
+
+BREAKDOWN = r"""
+import os, sys, time
+t0 = time.perf_counter()
+try:  # the program (barsynth.entry) keeps OpenBLAS to one thread: so does this imitation of it
+    import barsynth.entry
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+except ImportError:
+    pass
+marks = []
+def mark(name):
+    marks.append((name, time.perf_counter()))
+import numpy; mark("import numpy")
+import numba; mark("import numba")
+import barsynth.cli as cli; mark("import barsynth.cli (click, ...)")
+try:
+    from barsynth.jitstart import defer_blas_probe
+    defer_blas_probe(); mark("numba arraymath, BLAS probe deferred (jitstart)")
+except ImportError:
+    pass
+model = cli._model(sys.argv[1]); mark("import the model (its kernels' dispatchers, physics, presets)")
+resolved = cli._resolve(model, None, ())
+seconds = float(sys.argv[2])
+t = time.perf_counter()
+samples = model.render(resolved, duration_s=seconds, sample_rate=48000.0, seed=0)
+first = time.perf_counter() - t
+t = time.perf_counter()
+model.render(resolved, duration_s=seconds, sample_rate=48000.0, seed=0)
+pure = time.perf_counter() - t
+marks.append(("numba CPU target + load (or compile) kernels", marks[-1][1] + first - pure))
+marks.append((f"render {seconds:g} s (a second call)", marks[-1][1] + pure))
+t = time.perf_counter()
+from barsynth.audio_io import write_audio
+write_audio(sys.argv[3], samples, 48000.0, fmt="WAV", subtype="PCM_24")
+marks.append(("write the WAV", marks[-1][1] + time.perf_counter() - t))
+prev = t0
+for name, at in marks:
+    print(f"{(at - prev) * 1000:.1f}\t{name}")
+    prev = at
+print(f"{(prev - t0) * 1000:.1f}\tTOTAL in-process")
+print("loaded:", " ".join(m for m in ("scipy", "scipy.linalg", "matplotlib", "fastapi") if m in sys.modules))
+"""
+
+
+def _env(cache_dir: str | None = None) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    if cache_dir is not None:
+        env["NUMBA_CACHE_DIR"] = cache_dir
+    return env
+
+
+def run_once(cmd: list[str], *, env: dict[str, str], cwd: str, cpu: int | None = None) -> tuple[float, float, float]:
+    """(wall s, cpu s, peak MiB) of one child process; raises if it fails."""
+    preexec = (lambda: os.sched_setaffinity(0, {cpu})) if cpu is not None else None
+    start = time.perf_counter()
+    child = subprocess.Popen(cmd, env=env, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                             preexec_fn=preexec)  # noqa: PLW1509 - no threads here
+    _, status, usage = os.wait4(child.pid, 0)
+    wall = time.perf_counter() - start
+    err = child.stderr.read().decode(errors="replace")
+    child.stderr.close()
+    child.returncode = os.waitstatus_to_exitcode(status)
+    if child.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({child.returncode}): {err[-500:]}")
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
+
+
+def median_runs(cmd, *, runs, env, cwd, warmup=1, cpu=None):
+    for _ in range(warmup):
+        run_once(cmd, env=env, cwd=cwd, cpu=cpu)
+    rows = [run_once(cmd, env=env, cwd=cwd, cpu=cpu) for _ in range(runs)]
+    return tuple(statistics.median(r[i] for r in rows) for i in range(3)), rows
+
+
+def show(label: str, figures: tuple[float, float, float], rows=None) -> None:
+    spread = ""
+    if rows and len(rows) > 1:
+        walls = [r[0] for r in rows]
+        spread = f"  (wall {min(walls):.3f}..{max(walls):.3f})"
+    print(f"  {label:<44} wall {figures[0]:6.3f} s  cpu {figures[1]:6.3f} s  peak {figures[2]:6.1f} MiB{spread}")
+
+
+def importtime_summary(python: str, cwd: str, top: int = 15) -> None:
+    result = subprocess.run([python, "-X", "importtime", "-m", "barsynth", "render", "twang", "--duration", "1",
+                             "-o", "x.wav"], env=_env(), cwd=cwd, capture_output=True, text=True, check=True)
+    rows = []
+    for line in result.stderr.splitlines():
+        m = re.match(r"import time:\s+(\d+) \|\s+(\d+) \|( *)(\S+)", line)
+        if m:
+            rows.append((int(m.group(1)), int(m.group(2)), len(m.group(3)) // 2, m.group(4)))
+    total = sum(r[0] for r in rows)
+    print(f"  {len(rows)} modules imported, {total / 1000:.0f} ms in imports (self times summed; "
+          "modules imported through importlib.import_module are not listed, their imports are)")
+    print("  top-level imports by cumulative time:")
+    for self_us, cum, _, name in sorted((r for r in rows if r[2] == 0), key=lambda r: -r[1])[:top]:
+        print(f"    {cum / 1000:7.1f} ms  {name}")
+    print("  largest self times:")
+    for self_us, cum, _, name in sorted(rows, key=lambda r: -r[0])[:10]:
+        print(f"    {self_us / 1000:7.1f} ms  {name}")
+
+
+def breakdown(python: str, cwd: str, model: str, seconds: float, runs: int) -> None:
+    results: list[list[tuple[float, str]]] = []
+    loaded = ""
+    for _ in range(runs + 1):
+        out = subprocess.run([python, "-c", BREAKDOWN, model, str(seconds), str(Path(cwd) / "b.wav")], env=_env(),
+                             cwd=cwd, capture_output=True, text=True, check=True).stdout
+        lines = out.splitlines()
+        loaded = lines[-1]
+        results.append([(float(a), b) for a, b in (line.split("\t", 1) for line in lines[:-1])])
+    results = results[1:]  # the first run filled caches
+    start, _, _ = median_runs([python, "-c", "pass"], runs=runs, env=_env(), cwd=cwd)[0]
+    whole = median_runs([python, "-m", "barsynth", "render", model, "--duration", f"{seconds:g}", "-o", "x.wav"],
+                        runs=runs, env=_env(), cwd=cwd)[0][0]
+    print(f"  {start * 1000:7.1f} ms  Python start (python -c pass, whole process)")
+    names = [name for _, name in results[0]]
+    medians = [statistics.median(r[i][0] for r in results) for i in range(len(names))]
+    for value, name in zip(medians, names):
+        print(f"  {value:7.1f} ms  {name}")
+    rest = whole * 1000 - start * 1000 - medians[-1]
+    print(f"  {rest:7.1f} ms  the rest: the whole `barsynth render` ({whole * 1000:.0f} ms) minus the above "
+          "(argument parsing, checks, the interpreter's exit)")
+    print(f"  {loaded}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--python", default=sys.executable, help="the Python that has barsynth (default: this one)")
+    parser.add_argument("--runs", type=int, default=7, help="runs per figure (median)")
+    parser.add_argument("--cold-runs", type=int, default=2, help="runs per model for the first render")
+    parser.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
+    parser.add_argument("--skip-cold", action="store_true", help="skip (b), the first render after install")
+    parser.add_argument("--no-pin", action="store_true", help="do not pin (b) to one core")
+    args = parser.parse_args()
+    python = args.python
+    work = tempfile.mkdtemp(prefix="barsynth-startup-")
+    probe = ("import barsynth, numba, numpy, sys; print(barsynth.__file__, "
+             "'numba', numba.__version__, 'numpy', numpy.__version__, sys.version.split()[0])")
+    version = subprocess.run([python, "-c", probe],
+                             env=_env(), capture_output=True, text=True, check=True).stdout.strip()
+    print(f"barsynth start-up, {time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores; {version}")
+
+    print("\n(a, d) warm renders (numba cache filled by the warm-up run), whole processes:")
+    base = [python, "-m", "barsynth", "render"]
+    figures, rows = median_runs(base + ["twang", "--duration", "1", "-o", "x.wav"], runs=args.runs, env=_env(), cwd=work)
+    show("render twang --duration 1", figures, rows)
+    for model in args.models:
+        figures, rows = median_runs(base + [model, "--duration", "0.5", "-o", "x.wav"], runs=args.runs, env=_env(),
+                                    cwd=work)
+        show(f"render {model} --duration 0.5", figures, rows)
+    import resource
+
+    print(f"  largest child max RSS (getrusage RUSAGE_CHILDREN): "
+          f"{resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024:.1f} MiB")
+
+    if not args.skip_cold:
+        cpu = None if args.no_pin else min(os.sched_getaffinity(0))
+        where = "unpinned" if cpu is None else f"pinned to core {cpu}"
+        print(f"\n(b) first render after install (NUMBA_CACHE_DIR empty for each run, {where}):")
+        for model in args.models:
+            rows = []
+            for _ in range(args.cold_runs):
+                with tempfile.TemporaryDirectory(prefix="numba-cache-") as cache:
+                    rows.append(run_once(base + [model, "--duration", "0.5", "-o", "x.wav"], env=_env(cache), cwd=work,
+                                         cpu=cpu))
+            show(f"first render {model} --duration 0.5", tuple(statistics.median(r[i] for r in rows)
+                                                                 for i in range(3)), rows)
+
+    print("\n(c) where the time goes: python -X importtime -m barsynth render twang --duration 1")
+    importtime_summary(python, work)
+    print("\n(c) breakdown of a warm render twang --duration 1 (medians; in one process unless said):")
+    breakdown(python, work, "twang", 1.0, args.runs)
+
+
+if __name__ == "__main__":
+    main()

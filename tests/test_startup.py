@@ -1,0 +1,65 @@
+"""A plain render starts light: no SciPy linear algebra, no matplotlib, no web stack; numba's
+BLAS probe is deferred without breaking kernels that do use BLAS; the program's quick exit
+keeps its output and exit status. (benchmarks/startup.py measures the times.)"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+HEAVY = ("scipy.linalg", "scipy.signal", "scipy.optimize", "matplotlib", "fastapi", "uvicorn", "websockets")
+
+
+def _imported(stderr: str) -> set[str]:
+    """Module names from ``python -X importtime`` output."""
+    return {line.rsplit("|", 1)[-1].strip() for line in stderr.splitlines() if line.startswith("import time:")}
+
+
+def test_a_twang_render_imports_no_scipy_linalg_matplotlib_or_web_stack(tmp_path):
+    result = subprocess.run([sys.executable, "-X", "importtime", "-m", "barsynth", "render", "twang",
+                             "--duration", "0.2", "-o", "x.wav"], capture_output=True, text=True, cwd=tmp_path,
+                            timeout=300, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout == "wrote x.wav (0.2 s at 48000 Hz)\n"  # flushed before the quick exit
+    imported = _imported(result.stderr)
+    assert "barsynth.models.twang_kernel" in imported and "numba" in imported
+    assert not imported & set(HEAVY), sorted(imported & set(HEAVY))
+
+
+def test_importing_the_cli_loads_neither_numpy_nor_numba():
+    code = "import sys, barsynth.cli; print(sorted({'numpy', 'numba', 'scipy'} & set(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_the_program_keeps_its_exit_status_and_its_one_line_error(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "barsynth", "render", "twang", "--set", "q=-1", "-o", "x.wav"],
+                            capture_output=True, text=True, cwd=tmp_path, timeout=300, check=False)
+    assert result.returncode == 2
+    assert result.stdout == ""
+    assert len(result.stderr.splitlines()) == 1 and result.stderr.startswith("barsynth: error: parameter q")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_deferred_blas_probe_leaves_blas_kernels_working():
+    code = """
+import sys
+import numpy as np
+from numba import njit
+from barsynth.jitstart import defer_blas_probe
+assert defer_blas_probe()
+assert 'scipy.linalg' not in sys.modules
+plain = njit(lambda x: x + 1.0)
+assert plain(1.0) == 2.0
+assert 'scipy.linalg' not in sys.modules
+dot = njit(lambda a, b: np.dot(a, b))
+a = np.arange(3.0)
+assert dot(a, a) == 5.0
+assert 'scipy.linalg' in sys.modules  # the real check ran when BLAS was needed
+conv = njit(lambda a, b: np.convolve(a, b))
+assert np.allclose(conv(a, a), np.convolve(a, a))
+assert not defer_blas_probe()  # once only
+print('ok')
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)
+    assert result.stdout.strip() == "ok", result.stderr[-2000:]
