@@ -22,7 +22,7 @@ def test_a_twang_render_imports_no_scipy_linalg_matplotlib_or_web_stack(tmp_path
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout == "wrote x.wav (0.2 s at 48000 Hz)\n"  # flushed before the quick exit
     imported = _imported(result.stderr)
-    assert "barsynth.models.twang_kernel" in imported and "numba" in imported
+    assert "barsynth.models.twang.kernel" in imported and "numba" in imported
     assert not imported & set(HEAVY), sorted(imported & set(HEAVY))
 
 
