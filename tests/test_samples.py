@@ -25,6 +25,7 @@ class ExplodingVoice:
     """A voice whose sound is fine until ``at`` samples, then ``bad`` (NaN, inf or a huge value)."""
 
     restarts_on_trigger = can_release = uses_seed = False  # what it can do, declared as models.base.Voice asks
+    driven_until = 0
 
     def __init__(self, parameters, bad: float = float("nan"), at: int = 4800, sample_rate: float = RATE):
         self.parameters, self.bad, self.at, self.sample_rate = parameters, bad, at, float(sample_rate)

@@ -697,3 +697,24 @@ def test_random_settings_in_range_give_a_one_line_refusal_or_finite_bounded_samp
     for found in FOUND.get(name, []):
         check = example(data=None, found=found)(check)
     check()
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_driven_until_says_when_a_bow_lets_go(name):
+    """A voice that only rings out says 0; a bowed one the sample its bow is lifted at, after which
+    its sound decays (render duration auto waits for it)."""
+    table = get_model(name).table
+    if "excitation" not in table.names or "bow" not in table["excitation"].choices:
+        voice = fresh(name, model_settings(name))
+        voice.trigger()
+        voice.process(1000)
+        assert voice.driven_until == 0
+        return
+    voice = fresh(name, excited(name, "bow"))
+    assert voice.driven_until == 0  # never bowed
+    voice.trigger()
+    lifted = voice.driven_until
+    assert lifted > 0
+    x = voice.process(lifted + int(0.3 * RATE), dtype=np.float64)
+    frames = np.sqrt(np.mean(x[lifted:lifted + 15 * 20 * MS].reshape(15, 20 * MS) ** 2, axis=1))
+    assert frames[0] > 0 and np.all(frames[1:] <= 1.05 * frames[:-1])  # nothing drives it: it only rings out

@@ -124,6 +124,13 @@ class Voice:
     def release(self) -> None:
         """Let go (a bow stroke slows to rest); a voice that cannot release ignores it."""
 
+    @property
+    def driven_until(self) -> int:
+        """The index of the first sample (counted from the voice's reset) from which nothing drives
+        it any more: a bowed voice sustains until its bow is lifted. 0 for a voice that is only
+        struck, plucked or twanged (it only rings out)."""
+        return 0
+
     def process(self, num_samples: int, *, out: np.ndarray | None = None, dtype: Any = np.float32) -> np.ndarray:
         """The next ``num_samples`` samples (mono).
 

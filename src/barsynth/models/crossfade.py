@@ -58,8 +58,7 @@ class CrossfadingVoice:
     def __init__(self, voice: Any, *, fade_s: float = DEFAULT_FADE_S, table: Any = None):
         self.voice = voice
         self.fade_s = check_number("fade_s", fade_s, "s", minimum=0.0005, maximum=1.0)
-        model = getattr(voice, "model", None)
-        self._table = table if table is not None else getattr(model, "table", None)
+        self._table = table if table is not None else voice.model.table
         self._old: Any = None  # the voice as it was, fading out
         self._done = 0  # samples of the fade done
         self._restart = False  # the fade is a restart: the new note sounds at once, the old fades out

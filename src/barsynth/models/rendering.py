@@ -179,7 +179,7 @@ def _blocks(voice: Any, limit: int) -> Iterator[tuple[int, np.ndarray]]:
     """``(start, samples)``: the voice's raw samples, checked, block after block up to ``limit``
     samples (the caller may stop sooner), each block sized to take about BLOCK_WALL_S to compute."""
     rate = voice.sample_rate
-    parameters = getattr(voice, "parameters", None)
+    parameters = voice.parameters
     largest = max(MIN_BLOCK_SAMPLES, int(MAX_BLOCK_S * rate))
     size = min(largest, int(0.01 * rate))
     done = 0
@@ -207,8 +207,7 @@ def _render_until_quiet(voice: Any) -> np.ndarray:
     samples = np.empty(cap)  # pages never written are never touched
     voice.trigger()
     # a bowed voice sustains while its bow touches the bar: wait until it is lifted
-    bow = getattr(voice, "_bow", None)
-    lifted_at = int(getattr(bow, "lifted_at", 0))
+    lifted_at = int(voice.driven_until)
     hop = max(1, int(round(AUTO_HOP_S * rate)))
     heard = np.empty(cap)  # the samples as heard: high-passed at AUDIBLE_FROM_HZ
     audible, state = high_pass(AUDIBLE_FROM_HZ, rate), np.zeros(2)

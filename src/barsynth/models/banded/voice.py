@@ -79,6 +79,11 @@ class BandedVoice(Voice):
         (A bow that is not moving, a strike or a pluck is left as it is.)"""
         self._bow.stop()
 
+    @property
+    def driven_until(self) -> int:
+        """The sample index at which the bow is lifted (until another stroke)."""
+        return self._bow.lifted_at
+
     def _render(self, out: np.ndarray) -> None:
         """``out.size`` samples of velocity at the pick-up (m/s) times the level. The bowed
         kernel runs exactly while the bow touches; nothing is allocated."""

@@ -121,6 +121,11 @@ class FdVoice(Voice):
         (A bow that is not moving, a strike or a pluck is left as it is.)"""
         self._bow.stop()
 
+    @property
+    def driven_until(self) -> int:
+        """The sample index at which the bow is lifted (until another stroke)."""
+        return self._bow.lifted_at
+
     def _render(self, out: np.ndarray) -> None:
         """Velocity at the pick-up (m/s) times the level."""
         K.process(out, self._design.scheme, self._bar, self._mallet, self._bow_point, self._bow.lines,
