@@ -5,6 +5,7 @@ from __future__ import annotations
 import doctest
 import importlib
 
+import numpy as np
 import pytest
 
 MODULES = [
@@ -64,3 +65,20 @@ def test_the_readmes_library_example_runs(capsys):
     for block in blocks:
         exec(compile(block, "README.md", "exec"), {})
     assert len(capsys.readouterr().out.splitlines()) >= 3  # it prints the partials it found
+
+
+def test_the_contracts_example_model_keeps_the_contract(capsys):
+    """docs/contract.md's whole model in a page runs, and its voice keeps the contract."""
+    import re
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "contract.md").read_text(encoding="utf-8")
+    (block,) = re.findall(r"```python\n(.*?)```", doc, flags=re.S)
+    space: dict = {}
+    exec(compile(block, "docs/contract.md", "exec"), space)
+    assert capsys.readouterr().out == "440.0 24000\n"
+    model = space["MODEL"]
+    assert model.voice_class.model is model and model.params is model.table
+    x = model.render({"t60_s": 0.2}, duration_s=0.4, normalize=False, dtype="float64")
+    peak_at = lambda part: float(np.max(np.abs(part)))  # noqa: E731
+    assert peak_at(x[int(0.2 * 48000):int(0.21 * 48000)]) == pytest.approx(1e-3, rel=0.03)  # T60

@@ -87,15 +87,14 @@ class Voice:
         rate = check_sample_rate(sample_rate)
         block = self.DEFAULT_MAX_BLOCK if max_block is None else check_whole(
             "max_block", max_block, "samples", 1, MAX_BLOCK_SAMPLES)
-        previous = self.__dict__.get("sample_rate")
-        self.sample_rate = rate
+        previous = self.__dict__.get("sample_rate"), self.__dict__.get("max_block")
+        self.sample_rate, self.max_block = rate, block  # (what _prepare allocates for)
         try:
             self._prepare()
         except Exception:
-            if previous is not None:
-                self.sample_rate = previous
+            if previous[0] is not None:
+                self.sample_rate, self.max_block = previous
             raise
-        self.max_block = block
         self._scratch = np.empty(block)
         self.reset()
 
