@@ -165,6 +165,8 @@ def test_a_material_sets_youngs_modulus_and_density():
     later = table.resolve({"material": "steel"}, {"density_kg_m3": 3000})  # a --set on top of a preset
     assert (later.youngs_modulus_pa, later.density_kg_m3, later.material) == (steel.youngs_modulus_pa, 3000.0, "custom")
     assert table.resolve(table.as_dict(p)) == p  # its resolved values round-trip (a saved preset)
+    same = table.resolve({"material": "steel"}, {"density_kg_m3": steel.density_kg_m3})  # (a separate message)
+    assert same.material == "steel"
     with pytest.raises(ParameterError, match="either material or density_kg_m3"):
         table.resolve({"material": "steel", "density_kg_m3": 3000})
     with pytest.raises(ParameterError, match="material"):
@@ -211,3 +213,14 @@ def test_a_material_row_tells_the_page_what_each_choice_sets():
     assert row["sets"]["names"] == ["youngs_modulus_pa", "density_kg_m3"]
     assert row["sets"]["values"]["steel"] == [steel.youngs_modulus_pa, steel.density_kg_m3]
     assert "custom" not in row["sets"]["values"]
+
+
+def test_every_exciter_declares_its_forms_and_its_rows_say_when_they_act():
+    from barsynth.exciters import EXCITERS
+
+    assert set(EXCITERS) == {"strike", "pluck", "bow"}
+    for name, exciter in EXCITERS.items():
+        assert exciter.in_advance or exciter.coupled
+        assert hasattr(exciter, "force") == exciter.in_advance
+        for row in exciter.parameters():
+            assert dict(row.when)["excitation"] == (name,)

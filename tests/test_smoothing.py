@@ -51,3 +51,12 @@ def test_unknown_kind_is_refused():
     with pytest.raises(ValueError, match="linear"):
         SmoothedValue(1.0, ramp_s=0.01, step_rate=100, kind="cubic")
     assert math.isclose(SmoothedValue(1.0, ramp_s=0.01, step_rate=100).target, 1.0)
+
+
+def test_the_same_target_again_lets_the_ramp_carry_on():
+    value = SmoothedValue(0.0, ramp_s=0.001, step_rate=10000, kind="linear")  # 10 steps
+    value.set_target(1.0)
+    for _ in range(5):
+        value.next_value()
+    value.set_target(1.0)
+    assert [value.next_value() for _ in range(5)][-1] == 1.0

@@ -362,8 +362,10 @@ class ParameterTable:
                     raise ParameterError(
                         f"parameter {p.name} = {values[p.name]} sets {' and '.join(clash)}; allowed: "
                         f"either {p.name} or {' and '.join(clash)}, not both")
-                if p.name not in values and set(p.sets.names) & set(values):
-                    values[p.name] = p.default  # one of its parameters given by hand
+                if p.name not in values:  # one of its parameters given by hand, other than it sets: custom
+                    chosen = p.sets.values(merged[p.name], p.default)
+                    if any(values[n] != chosen.get(n) for n in set(p.sets.names) & set(values)):
+                        values[p.name] = p.default
                 values.update(implied)
             merged.update(values)
         return self.dataclass(**merged)

@@ -112,7 +112,7 @@ class SmoothedValue:
 
     def set_target(self, value: float) -> None:
         """Glide from the present value to ``value`` over the ramp."""
-        if value != self.state[TARGET] or self.is_smoothing:
+        if value != self.state[TARGET]:  # (the same target again: the ramp carries on)
             start_ramp(self.state, self.kind, float(value), self.steps)
 
     def next_value(self) -> float:

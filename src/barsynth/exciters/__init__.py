@@ -12,7 +12,9 @@ from .pluck import PLUCK_REACH, PLUCKED, POSITIONS_ALONG, Pluck, largest_deflect
 from .strike import STRUCK, MalletContact, Strike, mallet_contact_s
 
 STRUCK_OR_PLUCKED = {"excitation": ("strike", "pluck")}
+EXCITERS: dict[str, type[Exciter]] = {e.name: e for e in (Strike, Pluck, Bow)}
+"""Every exciter by its ``excitation`` name."""
 
-__all__ = ["BOWED", "PLUCKED", "PLUCK_REACH", "POSITIONS_ALONG", "STRUCK", "STRUCK_OR_PLUCKED", "Bow",
+__all__ = ["BOWED", "EXCITERS", "PLUCKED", "PLUCK_REACH", "POSITIONS_ALONG", "STRUCK", "STRUCK_OR_PLUCKED", "Bow",
            "DrivePoint", "Exciter", "ForceQueue", "MalletContact", "Pluck", "Strike", "largest_deflection",
            "mallet_contact_s"]

@@ -1,19 +1,22 @@
 """What every exciter shares: the force it hands a resonator, and the point it drives.
 
 An exciter (strike, pluck, bow) drives a resonator (banded loops, an all-pass waveguide, a
-finite-difference grid) at one point, as Faust's ``strikeModel : marimbaModel``. Two forms:
+finite-difference grid) at one point, as Faust's ``strikeModel : marimbaModel``. It offers
+one or both of two forms, declared on its class:
 
-- a force known in advance (``coupled = False``): the exciter computes the force per sample
-  when triggered and the resonator adds it to a :class:`ForceQueue` it plays out;
-- a contact solved with the resonator (``coupled = True``): the resonator's kernel solves the
-  exciter's force with its own step from the exciter's record (a mallet's mass and contact
-  spring, a bow's speed and force lines), because the force depends on the bar's motion.
+- ``in_advance``: a force known before it acts (``force(...)``: N per sample, then a force
+  held for good); the resonator adds it to a :class:`ForceQueue` it plays out (banded and
+  all-pass: strike and pluck);
+- ``coupled``: a contact solved with the resonator's own step, because the force depends on
+  the bar's motion: the exciter gives the record the resonator's kernel solves (the fd
+  mallet: :meth:`~barsynth.exciters.Strike.contact`; every bow: the :class:`~barsynth.exciters.Bow`'s
+  lines). A pluck's coupled form is the bar held out by :meth:`~barsynth.exciters.Pluck.hold_force_n`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
@@ -35,8 +38,10 @@ class Exciter:
 
     name: ClassVar[str] = ""
     """The ``excitation`` value that selects it."""
+    in_advance: ClassVar[bool] = False
+    """It offers a force known in advance (``force``)."""
     coupled: ClassVar[bool] = False
-    """Its force depends on the bar's motion, so the resonator solves it with its step."""
+    """It offers a contact the resonator solves with its own step."""
 
     @staticmethod
     def parameters() -> list[Parameter]:
@@ -78,10 +83,3 @@ class ForceQueue:
     def from_sample(self, start: int) -> np.ndarray:
         """What is pending from sample ``start`` of the present block."""
         return self.pending[start:] if start < self.pending.size else self.pending[:0]
-
-
-def as_force(change: Any) -> tuple[np.ndarray, float]:
-    """``(per sample, held)`` from an exciter's force: an array alone holds nothing after it."""
-    if isinstance(change, tuple):
-        return change
-    return change, 0.0

@@ -21,7 +21,7 @@ class Bow(Exciter):
     """The bow of a voice at ``sample_rate`` Hz: :attr:`controls` holds its lines for the kernel."""
 
     name = "bow"
-    coupled = True
+    coupled = True  # friction at the bow point, solved with the bar's step (banded, fd)
 
     def __init__(self, parameters: Any, sample_rate: float):
         self.sample_rate = sample_rate

@@ -45,10 +45,12 @@ class Pluck(Exciter):
     """A pluck, from a model's ``pluck_displacement_mm`` (and ``release_time_ms`` where it has one)."""
 
     name = "pluck"
+    in_advance = True  # the force released over release_time_ms (banded, all-pass)
+    coupled = True  # the bar held out, then let go with the step (fd: hold_force_n)
 
-    def __init__(self, parameters: Any):
+    def __init__(self, parameters: Any, *, release: bool = True):
         self.displacement_m = parameters.pluck_displacement_mm * 1e-3
-        self.release_s = getattr(parameters, "release_time_ms", 0.0) * 1e-3
+        self.release_s = parameters.release_time_ms * 1e-3 if release else 0.0
 
     @staticmethod
     def parameters(*, release: bool = True) -> list[Parameter]:
@@ -67,6 +69,6 @@ class Pluck(Exciter):
 
     def force(self, point: DrivePoint, sample_rate: float) -> tuple[np.ndarray, float]:
         """The force change of letting go (N per sample, over the release), and the change that
-        stays after it: the uncoupled form."""
+        stays after it: the in-advance form (needs ``release``)."""
         held = -self.hold_force_n(point)
         return release_ramp(held, self.release_s, sample_rate), held

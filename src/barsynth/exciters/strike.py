@@ -44,6 +44,8 @@ class Strike(Exciter):
     """A mallet strike, from a model's ``mallet_*`` parameters."""
 
     name = "strike"
+    in_advance = True  # the mallet's pulse off a rigid bar (banded, all-pass)
+    coupled = True  # the mallet itself, solved with the bar's step (fd)
 
     def __init__(self, parameters: Any):
         self.mass_kg = parameters.mallet_mass_kg

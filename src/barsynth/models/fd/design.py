@@ -183,7 +183,7 @@ def plucked_shape(p: FdParams, grid: BarGrid) -> np.ndarray:
     shape = vectors @ ((vectors.T @ force_at) / values)  # the deflection under a unit force (m/N)
     largest = float(np.max(np.abs(shape))) if shape.size else 0.0
     there = float(np.dot(force_at, shape))
-    pluck = Pluck(p)
+    pluck = Pluck(p, release=False)  # the bar is let go at once, with the step
     if there > np.finfo(float).tiny:
         return shape * pluck.hold_force_n(DrivePoint(there, largest))
     if not largest > 0.0:
