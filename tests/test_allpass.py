@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from barsynth.analysis import measure_partial
+from barsynth.dsp.smoothing import LEVEL_GLIDE_S
 from barsynth.dsp.mallet import hertz_stiffness, mallet_pulse
 from barsynth.errors import ParameterError
 from barsynth.models import get_model
@@ -147,9 +148,11 @@ def test_changes_while_ringing_carry_on_without_a_jump():
         return v
 
     voice, twin = struck(2000), struck(2000)
-    voice.set_parameters(level_db=-6.0)  # same waveguide: the state carries over, only the level changes
-    assert np.allclose(voice.process(500, dtype=np.float64), 10 ** (-6 / 20) * twin.process(500, dtype=np.float64),
-                       rtol=0.0, atol=1e-15)
+    voice.set_parameters(level_db=-6.0)  # same waveguide: the state carries over, the level glides there
+    steps = round(LEVEL_GLIDE_S * RATE)  # in equal steps of dB, from one step below 1
+    ramp = 10.0 ** (-6.0 / 20.0 * np.minimum(np.arange(1, 2 * steps + 1), steps) / steps)
+    assert np.allclose(voice.process(2 * steps, dtype=np.float64), ramp * twin.process(2 * steps, dtype=np.float64),
+                       rtol=1e-12, atol=0.0)
     voice, twin = struck(2000), struck(2000)
     before = voice.process(400, dtype=np.float64)
     twin.process(400, dtype=np.float64)

@@ -10,6 +10,7 @@ import pytest
 
 from barsynth.analysis import measure_partial
 from barsynth.dsp.mallet import hertz_stiffness, mallet_pulse
+from barsynth.dsp.smoothing import LEVEL_GLIDE_S
 from barsynth.errors import ParameterError
 from barsynth.models import get_model
 from barsynth.exciters.strike import HARDEST_CONTACT_S, SOFTEST_CONTACT_S
@@ -192,6 +193,26 @@ def test_a_refused_change_keeps_the_voice_as_it_was():
         voice.set_parameters(frequency_hz=5000.0, mode_ratios=(4.0,))
     assert voice.parameters == twin.parameters
     assert np.array_equal(voice.process(2000, dtype=np.float64), twin.process(2000, dtype=np.float64))
+
+
+@pytest.mark.parametrize("excitation", ["strike", "bow"])
+def test_a_new_level_glides_there_without_a_click(excitation):
+    """level_db is an output gain on the loops' sum (not in their weights) that glides over
+    LEVEL_GLIDE_S in equal steps of dB: the sound with the change is the sound without it
+    times that ramp, from one step below 1 on, then held; the loops are the same."""
+    def run(level_db):
+        voice = MODEL.voice({"excitation": excitation, "bow_duration_s": 1.0}, sample_rate=48000)
+        voice.trigger()
+        first = voice.process(4800, dtype=np.float64)
+        voice.set_parameters(level_db=level_db)
+        return voice, np.concatenate([first, voice.process(4800, dtype=np.float64)])
+    (voice, changed), (twin, kept) = run(-20.0), run(0.0)
+    assert np.array_equal(voice._bank.loops, twin._bank.loops)  # the level is not in the loops
+    assert np.array_equal(changed[:4800], kept[:4800])
+    steps = round(LEVEL_GLIDE_S * 48000)
+    ramp = 10.0 ** (-20.0 / 20.0 * np.minimum(np.arange(1, 4801), steps) / steps)
+    assert np.allclose(changed[4800:], ramp * kept[4800:], rtol=1e-12, atol=0.0)
+    assert abs(changed[4800]) > 0.98 * abs(kept[4800])  # no jump of 20 dB at the change
 
 
 def test_a_change_of_the_set_of_modes_keeps_what_rings_ringing():

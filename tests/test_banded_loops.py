@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from barsynth.analysis import measure_partial
+from barsynth.dsp.smoothing import SmoothedValue
 from barsynth.models.banded import kernel as K
 from barsynth.models.banded.design import design_loop, loop_records
 
@@ -29,8 +30,12 @@ def bank(designs, input_weights=None, output_weights=None):
     return loops
 
 
+UNIT_LEVEL = SmoothedValue(1.0, ramp_s=1.0, step_rate=1.0, kind="multiplicative").state
+"""The output gain held at 1 (a dsp.smoothing state: the kernel leaves the loops' sum as it is)."""
+
+
 def run(out, force, loops, state):
-    K.process(out, force, 0.0, loops, state.filters, state.buffers, state.position)
+    K.process(out, force, 0.0, loops, state.filters, state.buffers, state.position, UNIT_LEVEL)
 
 
 def impulse_response(design, seconds):

@@ -290,9 +290,9 @@ def test_a_pluck_takes_its_cap_from_the_exciter(monkeypatch):
 
 
 def test_a_new_level_glides_there_without_a_click():
-    """level_db glides over LEVEL_RAMP_S in equal steps of dB (dsp.smoothing, multiplicative):
+    """level_db glides over LEVEL_GLIDE_S in equal steps of dB (dsp.smoothing, multiplicative):
     the sound with the change is the sound without it times that ramp, from 1 on."""
-    from barsynth.models.fd.voice import LEVEL_RAMP_S
+    from barsynth.dsp.smoothing import LEVEL_GLIDE_S
 
     def run(change):
         voice = FdVoice({"points": 40}, sample_rate=RATE)
@@ -306,7 +306,7 @@ def test_a_new_level_glides_there_without_a_click():
     heard[:4410] = False
     gain = changed[heard] / kept[heard]
     at = np.flatnonzero(heard)
-    steps = round(LEVEL_RAMP_S * RATE)
+    steps = round(LEVEL_GLIDE_S * RATE)
     ramp = 10.0 ** (-12.0 / 20.0 * np.minimum(at - 4410 + 1, steps) / steps)
     assert np.allclose(gain, ramp, rtol=1e-9)  # from one step below 1 to the new level, then held
     assert gain[0] > 0.98  # no jump of 12 dB at the change

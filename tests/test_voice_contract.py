@@ -541,12 +541,23 @@ def test_reference_errors_as_declared(name):
 GLIDES_EVERYTHING = {"twang", "farnell"}
 """Voices whose every control glides (their docstrings: 5 ms smoothing). Every other voice
 glides the settings of an excitation (they shape the next strike or pluck, or the bow while it
-moves); a change of what rings (bar, loops, grid, level) is CrossfadingVoice's to fade
-(tests/test_crossfade.py)."""
+moves) and the parameters of GLIDED_BY_EVERY_MODEL; a change of what rings (bar, loops, grid)
+is CrossfadingVoice's to fade (tests/test_crossfade.py)."""
+
+GLIDED_BY_EVERY_MODEL = {"level_db"}
+"""Parameters every model must glide: the output level (the bar models ramp their output gain
+over dsp.smoothing.LEVEL_GLIDE_S, the twang and Farnell's twang over their 5 ms)."""
 
 
 def _glides(name: str, p) -> bool:
-    return name in GLIDES_EVERYTHING or any(when == "excitation" for when, _ in p.when)
+    return (name in GLIDES_EVERYTHING or p.name in GLIDED_BY_EVERY_MODEL
+            or any(when == "excitation" for when, _ in p.when))
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_every_model_has_the_level_it_must_glide(name):
+    """GLIDED_BY_EVERY_MODEL is not empty words: every model has those parameters."""
+    assert GLIDED_BY_EVERY_MODEL <= set(get_model(name).table.names)
 
 
 def _changes():

@@ -23,6 +23,10 @@ CURRENT, TARGET, STEP, LEFT = 0, 1, 2, 3
 SMOOTHED_STATE = 4
 KINDS = {"linear": LINEAR, "multiplicative": MULTIPLICATIVE}
 
+LEVEL_GLIDE_S = 0.020
+"""A bar model's new ``level_db`` is reached over this time (s), multiplicatively (equal steps
+of dB), a step a sample: the output gain of the banded, all-pass and finite-difference voices."""
+
 
 @njit(cache=True, inline="always")
 def start_ramp(state, kind, target, steps):  # pragma: no cover - compiled
@@ -72,6 +76,22 @@ def skip(state, kind, steps):  # pragma: no cover - compiled
         state[CURRENT] *= state[STEP] ** steps
         state[LEFT] = left - steps
     return state[CURRENT]
+
+
+@njit(cache=True, nogil=True)
+def scale(out, state, kind):  # pragma: no cover - compiled
+    """Multiply ``out`` in place by the value, stepped once a sample (``out[t]`` by the value
+    after ``t + 1`` steps); once the ramp has ended, by the held value (a held 1 leaves ``out``
+    as it is). Allocates nothing."""
+    n = out.size
+    t = 0
+    while t < n and state[LEFT] > 0.0:
+        out[t] *= next_value(state, kind)
+        t += 1
+    gain = state[CURRENT]
+    if gain != 1.0:
+        for i in range(t, n):
+            out[i] *= gain
 
 
 def ramp_steps(ramp_s: float, step_rate: float) -> int:

@@ -105,8 +105,9 @@ class Voice:
     def set_parameters(self, **values: Any) -> None:
         """Change parameters (validated, on top of the current ones: see
         :meth:`~barsynth.parameters.ParameterTable.changed`). What a model can glide it glides
-        without a click; a change it cannot glide (a new grid, new loops, a jump of level) is
-        cross-faded by :class:`~barsynth.models.crossfade.CrossfadingVoice`, as the studio plays.
+        without a click (every model glides its output level); a change it cannot glide (a new
+        grid, new loops) is cross-faded by :class:`~barsynth.models.crossfade.CrossfadingVoice`,
+        as the studio plays.
         A refused change changes nothing."""
         new = self.model.table.changed(self._params, values)
         old, self._params = self._params, new

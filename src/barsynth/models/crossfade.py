@@ -1,12 +1,12 @@
 """A voice whose every change is cross-faded: no parameter change or re-trigger clicks.
 
-Each model's voice smooths what it can (the twang glides every control over 5 ms), but
-some changes cannot glide: a new grid of the finite-difference bar, a new set of banded
-loops, a jump of the output level, or the twang's trigger, which restarts every phasor
-of a note that is still ringing. :class:`CrossfadingVoice` wraps any voice and, for
-each such event, keeps a copy of the voice as it was and fades from it to the voice as
-it is now over ``fade_s`` (10 ms by default, linear: the two are the same sound up to
-the change, so their gains sum to one). Both paths are continuous, so their mix is.
+Each model's voice smooths what it can (the twang glides every control over 5 ms, every
+model its output level), but some changes cannot glide: a new grid of the finite-difference
+bar, a new set of banded loops, a rebuilt all-pass waveguide, or the twang's trigger, which
+restarts every phasor of a note that is still ringing. :class:`CrossfadingVoice` wraps any
+voice and, for each such event, keeps a copy of the voice as it was and fades from it to the
+voice as it is now over ``fade_s`` (10 ms by default, linear: the two are the same sound up
+to the change, so their gains sum to one). Both paths are continuous, so their mix is.
 
 - ``set_parameters``: always cross-faded; a change that arrives during a fade waits
   for it to end (at most ``fade_s``), merged with any others that wait.

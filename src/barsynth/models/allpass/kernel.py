@@ -43,8 +43,7 @@ class Loop(NamedTuple):
     pick: np.ndarray  # (2,): weights of the waves at x_a and at x_b in the pick-up
     anchor: int  # a filter with a delay of at least one sample
     strike_rows: np.ndarray  # (rows, 5): force (N) -> travelling-wave velocity (m/s)
-    pickup_rows: np.ndarray  # (rows, 5): sum of the waves -> output
-    gain: float  # output gain (the level)
+    pickup_rows: np.ndarray  # (rows, 5): sum of the waves -> output (the level is the voice's output gain)
 
 
 class LoopState(NamedTuple):
@@ -77,8 +76,8 @@ def _cascade(rows, states, lo, hi, x):  # pragma: no cover - compiled
 def process(out, pending, held, loop, state):  # pragma: no cover - compiled
     """Run the waveguide (``loop``: a :class:`Loop`, ``state``: a :class:`LoopState`, each as a
     plain tuple) for ``out.size`` samples driven by a force (N): ``pending[t]`` for the first
-    ``pending.size`` samples, then ``held``; velocity at the pick-up (m/s) times the gain."""
-    rows, first, delays, signs, inject, pick, anchor, strike_rows, pickup_rows, gain = loop
+    ``pending.size`` samples, then ``held``; velocity at the pick-up (m/s)."""
+    rows, first, delays, signs, inject, pick, anchor, strike_rows, pickup_rows = loop
     buffers, states, position, strike_states, pickup_states, outputs = state
     y = outputs
     mask = buffers.shape[1] - 1
@@ -99,7 +98,7 @@ def process(out, pending, held, loop, state):  # pragma: no cover - compiled
         at_a = y[0] + y[3] + inject[0] * u
         at_b = y[1] + y[2] + inject[2] * u
         v = pick[0] * at_a + pick[1] * at_b
-        out[t] = gain * _cascade(pickup_rows, pickup_states, 0, n_pickup, v)
+        out[t] = _cascade(pickup_rows, pickup_states, 0, n_pickup, v)
         pos = (pos + 1) & mask
     position[0] = pos
 

@@ -3,11 +3,12 @@
 The voice builds the waveguide for its parameters (:func:`.design.design_for`), drives it with
 the force of its exciter (:class:`~barsynth.exciters.Strike` or
 :class:`~barsynth.exciters.Pluck`, uncoupled: a force known in advance, played through a
-:class:`~barsynth.exciters.ForceQueue`) and reads the pick-up (m/s, times ``level_db``). A new
-strike adds to what rings. A change of parameters that keeps the waveguide's shape (the level,
-the mallet) carries its state over; one that rebuilds it leaves the old waveguide ringing
-beside the new one (with the force it was given) for ``RETIRE_T60S`` of its longest T60, then
-fading out over ``FADE_S``.
+:class:`~barsynth.exciters.ForceQueue`) and reads the pick-up (m/s, times ``level_db``: an
+output gain on everything the voice plays, which glides to a new level over
+:data:`~barsynth.dsp.smoothing.LEVEL_GLIDE_S`). A new strike adds to what rings. A change of
+parameters that keeps the waveguide's shape (the level, the mallet) carries its state over; one
+that rebuilds it leaves the old waveguide ringing beside the new one (with the force it was
+given) for ``RETIRE_T60S`` of its longest T60, then fading out over ``FADE_S``.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, scale, start_ramp
 from ...exciters import POSITIONS_ALONG, DrivePoint, ForceQueue, Pluck, Strike, largest_deflection
 from ..base import Mode, Model, Voice
 from ..rendering import check_sample_rate
@@ -44,7 +46,7 @@ def _reckoned(position: float) -> float:
 class _Engine:
     """One built waveguide: the design, its kernel coefficients and the kernel's state."""
 
-    def __init__(self, design: AllpassDesign, gain: float):
+    def __init__(self, design: AllpassDesign):
         filters = design.filters
         self.design = design
         delays = np.array([f.delay for f in filters], dtype=np.int64)
@@ -59,7 +61,6 @@ class _Engine:
             anchor=int(np.argmax(delays)),
             strike_rows=np.ascontiguousarray(design.injection),
             pickup_rows=np.ascontiguousarray(design.pickup),
-            gain=float(gain),
         )
         self.clear()
 
@@ -133,8 +134,11 @@ class AllpassVoice(Voice):
         return self._engine.design
 
     def _build(self) -> _Engine:
-        p = self._params
-        return _Engine(design_for(p, self.sample_rate), 10.0 ** (p.level_db / 20.0))
+        return _Engine(design_for(self._params, self.sample_rate))
+
+    def _level_gain(self) -> float:
+        """The output gain: ``level_db`` as a factor."""
+        return 10.0 ** (self._params.level_db / 20.0)
 
     def _prepare(self) -> None:
         self._engine = self._build()
@@ -146,11 +150,17 @@ class AllpassVoice(Voice):
         self._fade = max(1, int(round(FADE_S * self.sample_rate)))
         self._fade_gains = np.arange(self._fade + 1) / self._fade
         self._part = np.empty(self.max_block)
+        self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
+        start_ramp(self._level, MULTIPLICATIVE, self._level_gain(), 0)
 
     def _update(self, old: AllpassParams) -> None:
         """What rings keeps ringing: the same shape carries on with the new coefficients; a new
-        shape retires the old waveguide (new strikes go to the new one)."""
+        shape retires the old waveguide (new strikes go to the new one). A new level glides
+        there over ``LEVEL_GLIDE_S``."""
         engine = self._build()
+        level = self._level_gain()
+        if level != self._level[TARGET]:
+            start_ramp(self._level, MULTIPLICATIVE, level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
         if engine.same_shape(self._engine):
             engine.take_state(self._engine)
         else:
@@ -202,10 +212,12 @@ class AllpassVoice(Voice):
         return reach
 
     def _render(self, out: np.ndarray) -> None:
-        """Velocity at the pick-up (m/s) times the level, of the waveguide and of the retired ones."""
+        """Velocity at the pick-up (m/s) of the waveguide and of the retired ones, times the level
+        (in place)."""
         self._engine.run(out, self._force)
         if self._retired:
             self._retired = [r for r in self._retired if r.add_to(out, self._part, self._fade_gains)]
+        scale(out, self._level, MULTIPLICATIVE)
 
 
 class AllpassModel(Model):

@@ -201,14 +201,17 @@ def loop_records(designs: list[LoopDesign]) -> np.ndarray:
 class BankDesign:
     """The loops of every mode that sounds, and the object as an exciter sees it.
 
-    ``loops``: the kernel's :data:`~.kernel.LOOP` records; ``modes``: each loop's row in
+    ``loops``: the kernel's :data:`~.kernel.LOOP` records (their output weights are the mode
+    shapes at the pick-up, without the level); ``modes``: each loop's row in
     :func:`mode_table`; ``strike_point``: the object at the strike point (compliance and
-    largest deflection per newton, m/N), for a pluck.
+    largest deflection per newton, m/N), for a pluck; ``level``: the output gain, ``level_db``
+    as a factor (the voice applies it to the loops' sum, gliding to a new one).
     """
 
     loops: np.ndarray
     modes: np.ndarray
     strike_point: DrivePoint
+    level: float
 
     @property
     def longest_delay(self) -> int:
@@ -244,9 +247,9 @@ def design_bank(p: BandedParams, sample_rate: float) -> BankDesign:
     loops["force_in"] = input_scale * strike / (sample_rate * mass)  # a force sample is an impulse F / fs
     loops["bow_in"] = input_scale * bow / (sample_rate * mass)
     loops["bow_at"] = bow
-    loops["out"] = pickup * 10.0 ** (p.level_db / 20.0)
+    loops["out"] = pickup
     stiffness = mass * (2.0 * math.pi * freqs[modes]) ** 2  # N/m per mode
     along = mode_shapes(p, count, POSITIONS_ALONG)[modes]
     strike_point = DrivePoint(compliance_m_n=float(np.sum(strike ** 2 / stiffness)),
                               reach_m_n=largest_deflection(strike, along, stiffness))
-    return BankDesign(loops, modes, strike_point)
+    return BankDesign(loops, modes, strike_point, 10.0 ** (p.level_db / 20.0))

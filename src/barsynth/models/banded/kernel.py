@@ -10,6 +10,9 @@ percussion instruments", Proc. ICMC 1999 (barsynth spec 3.1). Each loop is desig
     bp = b0 (v - v[-2]) - a1 bp[-1] - a2 bp[-2]
     buffer[t] = bp;  out += out_weight * ap
 
+and the sum is then multiplied by the level (an output gain that glides: a
+:mod:`barsynth.dsp.smoothing` state, stepped a sample at a time).
+
 The loops are a structured array, one :data:`LOOP` record per loop (from design.py); what
 they carry between blocks is a :class:`LoopState` (one :data:`FILTER` record per loop, the
 delay lines, the write position, and the bowed kernel's work space), so blocks of any size
@@ -33,6 +36,7 @@ from numba import njit
 
 from ...dsp.bow_stroke import FORCE, PRESSURE, SPEED, VELOCITY, held_until, line_value
 from ...dsp.friction import friction_given_width, stick_width
+from ...dsp.smoothing import MULTIPLICATIVE, scale
 
 LOOP = np.dtype([
     ("b0", "f8"), ("a1", "f8"), ("a2", "f8"),  # band-pass y = b0 (v - v[-2]) - a1 y[-1] - a2 y[-2]
@@ -42,7 +46,7 @@ LOOP = np.dtype([
     ("force_in", "f8"),  # weight of the force (N): input scale x mode shape at the strike point / (fs x mass)
     ("bow_in", "f8"),  # weight of the bow's friction force: as force_in, with the mode shape at the bow
     ("bow_at", "f8"),  # mode shape at the bow: the bar's velocity there is sum(bow_at x ap)
-    ("out", "f8"),  # output weight: mode shape at the pick-up x the level gain
+    ("out", "f8"),  # output weight: mode shape at the pick-up (the level is the voice's output gain)
 ])
 """One loop's coefficients."""
 
@@ -95,10 +99,12 @@ def carried_over(state: LoopState, old_rows: np.ndarray, rows: np.ndarray, longe
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def process(out, pending, held, loops, filters, buffers, position):  # pragma: no cover - compiled
+def process(out, pending, held, loops, filters, buffers, position, level):  # pragma: no cover - compiled
     """Run the bank for ``out.size`` samples driven by a force (N): ``pending[t]`` for the
     first ``pending.size`` samples, then ``held``. ``loops``: :data:`LOOP` records;
-    ``filters``, ``buffers``, ``position``: the :class:`LoopState`, updated.
+    ``filters``, ``buffers``, ``position``: the :class:`LoopState`, updated; ``level``: the
+    output gain, a multiplicative :mod:`barsynth.dsp.smoothing` state (stepped a sample at a
+    time, so the sum is exactly the loops' for a gain held at 1).
 
     With a force known in advance the bands do not interact, so they run two at a time over
     the whole block with their states in registers (measured: twice as fast as all bands per
@@ -149,11 +155,12 @@ def process(out, pending, held, loops, filters, buffers, position):  # pragma: n
         if on > 0.0:
             fb.v1, fb.v2, fb.y1, fb.y2, fb.ap_x, fb.ap_y = v1b, v2b, y1b, y2b, xb, apb
     position[0] = (start + n) & mask
+    scale(out, level, MULTIPLICATIVE)
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def process_bowed(out, pending, held_force, lines, start, loops, filters, buffers, position,
-                  work):  # pragma: no cover - compiled
+def process_bowed(out, pending, held_force, lines, start, loops, filters, buffers, position, work,
+                  level):  # pragma: no cover - compiled
     """As :func:`process` (``held_force`` is its ``held``), with a bow as well, whose controls
     are the breakpoint ``lines`` of :class:`barsynth.dsp.bow_stroke.BowControls`; ``start`` is
     the absolute sample index of ``out[0]``; ``work`` is the state's work space. The bow's
@@ -235,3 +242,4 @@ def process_bowed(out, pending, held_force, lines, start, loops, filters, buffer
             state.v1, state.v2, state.y1, state.y2 = v1, v2, y1, y2
         pos = (pos + m) & mask
     position[0] = pos
+    scale(out, level, MULTIPLICATIVE)

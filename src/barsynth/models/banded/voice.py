@@ -10,13 +10,15 @@ they are added to a :class:`~barsynth.exciters.ForceQueue` the kernel plays out)
 friction depends on the bar's velocity under it (coupled: the bowed kernel solves it each
 sample from the :class:`~barsynth.exciters.Bow`'s lines). A new strike, stroke or pluck adds
 to whatever still rings: nothing is cleared. The output is the object's velocity at the
-pick-up point (m/s) times ``level_db``.
+pick-up point (m/s) times ``level_db`` (an output gain that glides to a new level over
+:data:`~barsynth.dsp.smoothing.LEVEL_GLIDE_S`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
 from ...exciters import Bow, ForceQueue, Pluck, Strike
 from ..base import Voice
 from . import kernel as K
@@ -44,21 +46,27 @@ class BandedVoice(Voice):
     _state: K.LoopState
     _forces: ForceQueue
     _bow: Bow
+    _level: np.ndarray
 
     def _prepare(self) -> None:
         """Design the loops for ``self.sample_rate`` (raises for an object with no mode that can sound)."""
         self._bank = design_bank(self._params, self.sample_rate)
 
     def _reset(self) -> None:
-        """Silence: every loop emptied, no force pending, the bow off the bar."""
+        """Silence: every loop emptied, no force pending, the bow off the bar; the level as it is set."""
         self._state = K.empty_state(len(self._bank.modes), self._bank.longest_delay)
         self._forces = ForceQueue()
         self._bow = Bow(self._params, self.sample_rate)
+        self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
+        start_ramp(self._level, MULTIPLICATIVE, self._bank.level, 0)
 
     def _update(self, old: BandedParams) -> None:
-        """The loops are redesigned at once; what rings keeps ringing, a new bow setting glides."""
+        """The loops are redesigned at once; what rings keeps ringing; a new level glides there
+        over ``LEVEL_GLIDE_S``, a new bow setting glides."""
         bank, previous = design_bank(self._params, self.sample_rate), self._bank
         self._bank = bank
+        if bank.level != self._level[TARGET]:
+            start_ramp(self._level, MULTIPLICATIVE, bank.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
         if not (np.array_equal(bank.modes, previous.modes)
                 and self._state.buffers.shape[1] >= bank.longest_delay + 2):
             self._state = K.carried_over(self._state, previous.modes, bank.modes, bank.longest_delay)
@@ -86,18 +94,19 @@ class BandedVoice(Voice):
 
     def _render(self, out: np.ndarray) -> None:
         """``out.size`` samples of velocity at the pick-up (m/s) times the level. The bowed
-        kernel runs exactly while the bow touches; nothing is allocated."""
+        kernel runs exactly while the bow touches; the kernels apply the level in place; nothing
+        is allocated."""
         n, bow, forces = out.size, self._bow, self._forces
         now = bow.now
         bowed = min(n, max(0, bow.lifted_at - now))
         loops, state = self._bank.loops, self._state
         if bowed:
             K.process_bowed(out if bowed == n else out[:bowed], forces.pending, forces.held, bow.lines, now,
-                            loops, state.filters, state.buffers, state.position, state.work)
+                            loops, state.filters, state.buffers, state.position, state.work, self._level)
         if bowed < n:
             pending = forces.pending if bowed == 0 else forces.from_sample(bowed)
             K.process(out if bowed == 0 else out[bowed:], pending, forces.held, loops, state.filters,
-                      state.buffers, state.position)
+                      state.buffers, state.position, self._level)
         bow.now = now + n
         if forces.pending.size:
             forces.advance(n)

@@ -10,16 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...dsp.smoothing import MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
+from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
 from ...exciters import Bow, Strike
 from ..base import Voice
 from . import kernel as K
 from .design import Design, design, history_size, plucked_shape
 from .table import FdParams
-
-LEVEL_RAMP_S = 0.020
-"""A new ``level_db`` is reached over this time (s), in equal steps of dB."""
-
 
 class FdVoice(Voice):
     """Streaming finite-difference bar: ``prepare`` / ``reset`` / ``trigger`` / ``release`` / ``process``.
@@ -69,8 +65,8 @@ class FdVoice(Voice):
 
     def _update(self, old: FdParams) -> None:
         """On the same grid what rings keeps ringing (a new step keeps its velocities) and a new
-        level glides there over ``LEVEL_RAMP_S``; a new grid starts silent. A new bow velocity or
-        force glides there."""
+        level glides there over ``LEVEL_GLIDE_S`` (:mod:`barsynth.dsp.smoothing`); a new grid
+        starts silent. A new bow velocity or force glides there."""
         p = self._params
         new = design(p, self.sample_rate)
         if new.grid.mass.size != self._design.grid.mass.size:
@@ -79,7 +75,7 @@ class FdVoice(Voice):
             if p.oversampling != old.oversampling:
                 self._change_step(old.oversampling, p.oversampling, new.taps)
             if new.level != self._level[TARGET]:
-                start_ramp(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_RAMP_S, self.sample_rate))
+                start_ramp(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
             self._use(new)
         self._bow.update(p)
 
