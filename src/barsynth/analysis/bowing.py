@@ -121,8 +121,8 @@ def bow_map(model: Any, parameters: Any = None, *, velocities_m_s: Any = None, f
 
     table = model.table if isinstance(model, Model) else None
     if table is None or not all(name in table.names for name in _NEEDED) or "bow" not in table["excitation"].choices:
-        shown = model.name if isinstance(model, Model) else show_value(model)
-        raise ParameterError(f"model {shown!r} cannot be bowed; allowed: a model with excitation = bow")
+        shown = repr(model.name) if isinstance(model, Model) else show_value(model)
+        raise ParameterError(f"model {shown} cannot be bowed; allowed: a model with excitation = bow")
     duration_s = check_number("duration_s", duration_s, "s", minimum=SHORTEST_S, maximum=30.0)
     rate = check_sample_rate(sample_rate)
     base = table.as_dict(resolve_parameters(model, parameters))
