@@ -87,6 +87,7 @@ class TwangVoice(Voice):
         self._modes = new_modes()
         self._osc = K.Oscillators(np.zeros((2, N_OSC)), np.zeros((2, N_OSC, frame_len + 1)), np.zeros((3, N_OSC)),
                                   np.zeros(N_OSC, dtype=np.int64))
+        self._run = None  # process, compiled for these records: resolved at the first render (see K.compiled)
         self._bands = K.Bands(np.zeros((4, N_BANDS)), np.zeros((4, N_BANDS)), np.zeros(N_BANDS),
                               np.zeros((N_BANDS, frame_len + 1)), np.zeros((3, N_BANDS)),
                               np.zeros(N_BANDS, dtype=np.int64))
@@ -129,4 +130,8 @@ class TwangVoice(Voice):
         scal[K.S_X2] = 0.0
 
     def _render(self, out: np.ndarray) -> None:
-        K.process(out, self._setup, self._controls, self._note, self._modes, self._osc, self._bands)
+        run = self._run
+        if run is None:  # not through process's dispatcher at every call: it types the records in Python
+            run = self._run = K.compiled((self._setup, self._controls, self._note, self._modes, self._osc,
+                                          self._bands))
+        run(out, self._setup, self._controls, self._note, self._modes, self._osc, self._bands)
