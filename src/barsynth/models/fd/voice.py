@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...dsp.smoothing import MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
+
+_start_ramp = start_ramp.py_func  # from Python: the same arithmetic, without compiling it on its own
 from ...exciters import Bow, Strike
 from ..base import Voice
 from . import kernel as K
@@ -53,7 +55,7 @@ class FdVoice(Voice):
         self._output_state = np.zeros(1, K.OUTPUT_STATE)
         self._history = np.zeros(history_size(new.taps))
         self._level = np.zeros(SMOOTHED_STATE)
-        start_ramp(self._level, MULTIPLICATIVE, new.level, 0)
+        _start_ramp(self._level, MULTIPLICATIVE, new.level, 0)
         self._use(new)
 
     def _use(self, new: Design) -> None:
@@ -79,7 +81,7 @@ class FdVoice(Voice):
             if p.oversampling != old.oversampling:
                 self._change_step(old.oversampling, p.oversampling, new.taps)
             if new.level != self._level[TARGET]:
-                start_ramp(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_RAMP_S, self.sample_rate))
+                _start_ramp(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_RAMP_S, self.sample_rate))
             self._use(new)
         self._bow.update(p)
 
