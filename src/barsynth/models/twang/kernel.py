@@ -26,10 +26,10 @@ so a deeper call tree compiles the same code once per level. Numba-level inlinin
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
-from numba import njit, typeof
+from numba import njit
 
 from ...dsp.noise import uniform_noise
 from ...dsp.smoothing import CURRENT, LEFT, TARGET, next_value, start_ramp
@@ -283,23 +283,6 @@ def process(out, setup, controls, note, modes, osc, bands):
         scal[S_FRAME_POS] = float(frame_pos)
         scal[S_TIME] += m
         pos += m
-
-
-def compiled(records: tuple) -> Any:
-    """:func:`process`'s compiled function for these records (``(setup, controls, note, modes,
-    osc, bands)``), compiled or loaded from numba's cache now: call it as ``run(out, *records)``
-    with ``out`` a writeable C-contiguous float64 array.
-
-    Called through its dispatcher, ``process`` has every argument typed on every call, and
-    numba types a NamedTuple in Python (about 6 us a call for these five, against 0.4 us for
-    arrays). The voice resolves the overload once (``process.overloads``, keyed by the
-    argument types) and calls its entry point, which only unboxes the arguments: it checks
-    no types, so it must only ever get these records (or ones of the very same types) and
-    such an ``out``.
-    """
-    signature = (typeof(np.empty(1)), *(typeof(record) for record in records))
-    process.compile(signature)
-    return process.overloads[signature].entry_point
 
 
 @njit(**_INNER)
