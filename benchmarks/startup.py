@@ -24,36 +24,45 @@ package has its ``.pyc`` files (pip compiles them), and a run from a source tree
 too, else every run compiles barsynth's sources again. Give ``--python`` an installed
 venv's Python to measure an install; with PYTHONPATH=src it measures the source tree.
 
-Figures of 2026-11-25 (2-core AMD EPYC VM shared with other work, load 3-7: wall times
-swing by +-30 %, CPU seconds are steadier; medians of 7-15 whole processes; "before" is
-commit cc8cf22, "after" this branch; numba 0.68.1, NumPy 2.4.6, Python 3.11.7)::
+Figures of 2026-11-25 (2-core AMD EPYC VM shared with other work: wall times swing by
++-30 % under load, CPU seconds are steadier; medians of 7 whole processes, 3 for first
+renders; numba 0.68.1, NumPy 2.4.6, Python 3.11.7). "start" is commit cc8cf22 (before the
+lighter start), "before" b129079 (after it), "after" the perf branch (measured in the same
+hour as "before")::
 
-                                       before                after
-  warm render twang --duration 1       1.08 s wall, 1.28 CPU  0.54 s wall, 0.54 CPU
-      (paired A/B runs under load: after/before = 0.49-0.56 of the wall time)
+                                       start                  before                 after
+  warm render twang --duration 1       1.08 s wall, 1.28 CPU  0.48 s wall, 0.48 CPU  0.49 s wall, 0.49 CPU
   warm render --duration 0.5, CPU s:
-      twang / farnell / banded         0.99 / 1.08 / 0.94     0.48 / 0.51 / 0.50
-      allpass / fd                     1.13 / 1.54            0.64 / 1.16
-  first render after install, CPU s (one core; wall 2-3x that under the load):
-      twang                            8.9 (6.7 quieter)      7.7 (6.4 quieter)
-      farnell / banded / allpass       1.6 / 1.85 / 2.9       1.3 / 1.45 / 1.8
-      fd                               5.95                   4.4
-  peak memory (max RSS), MiB:
-      twang / farnell / banded         158.8 / 155.9 / 157.6  146.9 / 143.9 / 145.7
-      allpass / fd                     160.3 / 206.2          148.3 / 206.0
+      twang / farnell / banded         0.99 / 1.08 / 0.94     0.46 / 0.44 / 0.57     0.43 / 0.50 / 0.53
+      allpass / fd                     1.13 / 1.54            0.80 / 1.28            0.74 / 0.56
+  first render after install, CPU s (one core):
+      twang                            8.9 (6.7 quieter)      7.3                    4.5
+      farnell / banded / allpass       1.6 / 1.85 / 2.9       1.40 / 1.19 / 1.44     1.42 / 1.32 / 1.59
+      fd                               5.95                   4.8                    2.6
+  peak memory (max RSS), MiB, warm:
+      twang / farnell / banded         158.8 / 155.9 / 157.6  147.5 / 144.3 / 145.8  146.6 / 144.3 / 145.8
+      allpass / fd                     160.3 / 206.2          148.5 / 206.5          148.6 / 147.4
+  peak memory, first render: twang 204.6 -> 185.0 MiB, fd 254.3 -> 180.5 MiB (before -> after)
 
   where a warm render twang --duration 1 goes (after; in-process medians, ms):
-      Python start 11, import NumPy 63, import numba 178, barsynth.cli (mostly click) 29,
-      numba.np.arraymath etc. (jitstart) 36, the model module 15, numba's CPU target
-      (registries; cffi/pycparser 15-40, numpy.ma 15-30) + loading the 2 cached kernels
-      149, rendering 1 s 1.2, writing the WAV 10; the exit ~0 (skipped tear-down).
-  taken away: numba's BLAS probe importing scipy.linalg (~150 ms, 12 MiB), OpenBLAS
-  starting a thread per core at NumPy's import (~50 ms on 2 cores), the interpreter's
-  tear-down after numba (~200 ms).
-  still there, in models/ and dsp/: fd imports scipy.signal (for firwin: ~0.9 s CPU and
-  ~50 MiB the first time) and scipy.linalg (eig_banded) on every render; allpass fits its
-  all-pass chains (Levenberg-Marquardt in Python, ~0.1-0.27 s) on every render; twang
-  compiles its biggest kernel twang_kernel._render twice (for Literal[int](0) and int64).
+      Python start 11, import NumPy 60, import numba 144, barsynth.cli (mostly click) 26,
+      numba.np.arraymath etc. (jitstart) 29, the model module 16, numba's CPU target
+      (registries; cffi/pycparser, numpy.ma) + loading the cached kernel 124, rendering
+      1 s 2.3, writing the WAV 6; the exit ~1 (skipped tear-down). Whole: 427 ms.
+  taken away by the lighter start: numba's BLAS probe importing scipy.linalg (~150 ms,
+  12 MiB), OpenBLAS starting a thread per core at NumPy's import (~50 ms on 2 cores), the
+  interpreter's tear-down after numba (~200 ms).
+  taken away by the perf branch: fd's scipy.signal (firwin, now NumPy: ~0.9 s CPU and
+  ~50 MiB the first time) and scipy.linalg (eig_banded for the stability check, now
+  np.linalg.eigvalsh) on every strike or bow render (the pluck still imports
+  scipy.linalg for eigh); twang's 11 compiled functions, _render compiled twice
+  (Literal[int](0) and int64), each with Python and C wrappers, callees three levels deep
+  (numba optimises and emits a callee's code again in each caller's module): now one level,
+  no wrappers, one _render; fd's exciters numba-inlined (inline="always": typed and
+  lowered at every call site) and _friction compiled twice: now compiled once each.
+  still there: twang's first render (4.5 s: numba types and lowers its ten functions,
+  0.1-0.8 s each; design and process are the largest); allpass fits its all-pass chains
+  (Levenberg-Marquardt in Python, ~0.1-0.27 s) on every render.
 
 The first-render figures are the kernels' compile times; they are the models' to reduce
 (see the report of the "lighter start and install" work).

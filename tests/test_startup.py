@@ -7,6 +7,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 HEAVY = ("scipy.linalg", "scipy.signal", "scipy.optimize", "matplotlib", "fastapi", "uvicorn", "websockets")
 
 
@@ -15,14 +17,15 @@ def _imported(stderr: str) -> set[str]:
     return {line.rsplit("|", 1)[-1].strip() for line in stderr.splitlines() if line.startswith("import time:")}
 
 
-def test_a_twang_render_imports_no_scipy_linalg_matplotlib_or_web_stack(tmp_path):
-    result = subprocess.run([sys.executable, "-X", "importtime", "-m", "barsynth", "render", "twang",
+@pytest.mark.parametrize("model", ["twang", "fd"])
+def test_a_render_imports_no_scipy_linalg_or_signal_matplotlib_or_web_stack(tmp_path, model):
+    result = subprocess.run([sys.executable, "-X", "importtime", "-m", "barsynth", "render", model,
                              "--duration", "0.2", "-o", "x.wav"], capture_output=True, text=True, cwd=tmp_path,
                             timeout=300, check=False)
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout == "wrote x.wav (0.2 s at 48000 Hz)\n"  # flushed before the quick exit
     imported = _imported(result.stderr)
-    assert "barsynth.models.twang.kernel" in imported and "numba" in imported
+    assert f"barsynth.models.{model}.kernel" in imported and "numba" in imported
     assert not imported & set(HEAVY), sorted(imported & set(HEAVY))
 
 

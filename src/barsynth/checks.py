@@ -237,6 +237,8 @@ def check_whole(
     >>> check_whole("count", 3.0, "", 1, 10, integral_floats=True)
     3
     """
+    if type(value) is int and value >= minimum and (maximum is None or value <= maximum):
+        return value  # the common case, before any message is built (a block size: every process call)
     allowed = _allowed(unit, minimum, maximum, False, False, whole=True)
     number: int | None = None
     if _is_int(value) and not isinstance(value, bool):

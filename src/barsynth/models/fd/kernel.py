@@ -135,10 +135,24 @@ def padded(vector: np.ndarray) -> np.ndarray:
 
 
 def solve(r: np.ndarray, factors: np.ndarray) -> np.ndarray:
-    """``A^-1 r`` for a plain (unpadded) vector, with the kernel's factors."""
-    s = np.zeros(r.size + 2 * PAD)
-    _solve(padded(r), factors[0], factors[1], factors[2], s)
-    return s[PAD:-PAD]
+    """``A^-1 r`` for a plain (unpadded) vector, with the kernel's factors: the forward and
+    backward substitutions of ``L D L^T``. Plain Python floats (IEEE doubles, the same
+    arithmetic as compiled code without fast-math): a design solves two, well under a
+    millisecond each at the default 100 nodes, where compiling it cost 0.15 s of a first render."""
+    l1, l2, inv_d = (row.tolist() for row in factors)
+    s = padded(r).tolist()  # r (its pads 0), then s in place
+    end = len(s) - PAD
+    for q in range(PAD, end):
+        s[q] = s[q] - l1[q] * s[q - 1] - l2[q] * s[q - 2]
+    for q in range(end - 1, PAD - 1, -1):
+        s[q] = s[q] * inv_d[q] - l1[q + 1] * s[q + 1] - l2[q + 2] * s[q + 2]
+    return np.array(s[PAD:-PAD])
+
+
+# The exciters' functions are compiled on their own (numba's inline="always" would type and
+# lower their bodies again at every call: _potential four times) and only ever called from
+# process: no Python or C wrapper, no cache of their own; contract as process.
+_INNER = {"nogil": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True, "fastmath": {"contract"}}
 
 
 @njit(cache=True, inline="always")
@@ -151,13 +165,13 @@ def _solve(r, l1, l2, inv_d, s):  # pragma: no cover - compiled
         s[q] = s[q] * inv_d[q] - l1[q + 1] * s[q + 1] - l2[q + 2] * s[q + 2]
 
 
-@njit(cache=True, inline="always")
+@njit(**_INNER)
 def _potential(squeeze, stiffness, exponent):  # pragma: no cover - compiled
     """The contact spring's energy ``k d^(p+1) / (p+1)`` (J) at a squeeze ``d`` (m)."""
     return stiffness * squeeze ** (exponent + 1.0) / (exponent + 1.0) if squeeze > 0.0 else 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(**_INNER)
 def _gradient(after, before, stiffness, exponent):  # pragma: no cover - compiled
     """The discrete gradient ``(V(after) - V(before)) / (after - before)`` of the contact energy (N)."""
     gap = after - before
@@ -167,7 +181,7 @@ def _gradient(after, before, stiffness, exponent):  # pragma: no cover - compile
     return (_potential(after, stiffness, exponent) - _potential(before, stiffness, exponent)) / gap
 
 
-@njit(cache=True, inline="always")
+@njit(**_INNER)
 def _contact_force(free_squeeze, give, before, stiffness, exponent):  # pragma: no cover - compiled
     """The mallet force F (N) with ``F = gradient(free_squeeze - give F, before)``: the squeeze
     next step falls by ``give`` (m/N) per newton. The right side falls as F grows, so the root
@@ -187,7 +201,7 @@ def _contact_force(free_squeeze, give, before, stiffness, exponent):  # pragma: 
     return 0.5 * (low + high)
 
 
-@njit(cache=True, inline="always")
+@njit(**_INNER)
 def _mallet(s, u_prev, mallet, rate):  # pragma: no cover - compiled
     """The mallet's force (N) this step, given the step solved without it (``s``); moves the mallet."""
     state = mallet.state[0]
@@ -209,7 +223,7 @@ def _mallet(s, u_prev, mallet, rate):  # pragma: no cover - compiled
     return force
 
 
-@njit(cache=True, inline="always")
+@njit(**_INNER)
 def _friction(s, u_prev, u, bow, lines, x, j_speed, j_velocity, j_force, pressure, rate):  # pragma: no cover
     """The bow's friction force (N) this step, and the lines' pieces."""
     end = s.size - PAD
@@ -284,7 +298,7 @@ def process(out, scheme, bar, mallet, bow, lines, start, pickup):  # pragma: no 
     taps, history = pickup.taps, pickup.history
     history_mask = history.size - 1
     h = output.written
-    j_speed = j_pressure = j_velocity = j_force = 0
+    j_speed = j_pressure = j_velocity = j_force = np.int64(0)  # int64, not Literal[int](0): _friction compiles once
     for step in range(out.size * substeps):
         t = step // substeps
         # A s = B u + (C/k) u-: the right-hand side formed inside the forward substitution

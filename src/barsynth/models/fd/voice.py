@@ -12,10 +12,14 @@ import numpy as np
 
 from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
 from ...exciters import Bow, Strike
+from ...jitstart import compiled_for
 from ..base import Voice
 from . import kernel as K
 from .design import Design, design, history_size, plucked_shape
 from .table import FdParams
+
+_start_ramp = start_ramp.py_func  # from Python: the same arithmetic, without compiling it on its own
+
 
 class FdVoice(Voice):
     """Streaming finite-difference bar: ``prepare`` / ``reset`` / ``trigger`` / ``release`` / ``process``.
@@ -49,7 +53,7 @@ class FdVoice(Voice):
         self._output_state = np.zeros(1, K.OUTPUT_STATE)
         self._history = np.zeros(history_size(new.taps))
         self._level = np.zeros(SMOOTHED_STATE)
-        start_ramp(self._level, MULTIPLICATIVE, new.level, 0)
+        _start_ramp(self._level, MULTIPLICATIVE, new.level, 0)
         self._use(new)
 
     def _use(self, new: Design) -> None:
@@ -62,6 +66,7 @@ class FdVoice(Voice):
         self._bow_point = K.BowPoint(new.bow.at, new.bow.response, 0.5 * new.scheme.step_rate * new.bow.gain,
                                      p.bow_solver == "newton", self._bow_state)
         self._pickup = K.Pickup(new.pickup, self._level, new.taps, self._history, self._output_state)
+        self._run = None  # process compiled for these records, resolved at the next render (jitstart.compiled_for)
 
     def _update(self, old: FdParams) -> None:
         """On the same grid what rings keeps ringing (a new step keeps its velocities) and a new
@@ -75,7 +80,7 @@ class FdVoice(Voice):
             if p.oversampling != old.oversampling:
                 self._change_step(old.oversampling, p.oversampling, new.taps)
             if new.level != self._level[TARGET]:
-                start_ramp(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
+                _start_ramp(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
             self._use(new)
         self._bow.update(p)
 
@@ -124,6 +129,10 @@ class FdVoice(Voice):
 
     def _render(self, out: np.ndarray) -> None:
         """Velocity at the pick-up (m/s) times the level."""
-        K.process(out, self._design.scheme, self._bar, self._mallet, self._bow_point, self._bow.lines,
-                  self._bow.now, self._pickup)
-        self._bow.now += out.size
+        bow = self._bow
+        run = self._run
+        if run is None:  # process's dispatcher would type the records at every call (~6 us)
+            run = self._run = compiled_for(K.process, out, self._design.scheme, self._bar, self._mallet,
+                                           self._bow_point, bow.lines, bow.now, self._pickup)
+        run(out, self._design.scheme, self._bar, self._mallet, self._bow_point, bow.lines, bow.now, self._pickup)
+        bow.now += out.size

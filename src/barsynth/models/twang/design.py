@@ -35,6 +35,10 @@ VIBRATO_FADE_RATE_HZ = 0.5  # below this rate the vibrato depth fades to 0 (glid
 MIN_BAND_HZ = 20.0  # free-bar bands fade out from 30 Hz to 20 Hz and are silent below
 REFERENCE_SHORT_GAIN = 0.75  # the paper's short/full ratio, used by the level scale
 
+# Compiled only as part of the kernel (its cache holds them): no wrapper to call them from
+# Python, nor a C one; design_modes runs design's Python function instead.
+_INNER = {"nogil": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+
 
 class Modes(NamedTuple):
     """One design's 18 modes (full cantilever 0-5, short cantilever 6-11, free bar 12-17)."""
@@ -58,16 +62,7 @@ def mode_lambdas() -> np.ndarray:
     ).astype(np.float64)
 
 
-@njit(cache=True, nogil=True)
-def _smoothstep(u):
-    if u <= 0.0:
-        return 0.0
-    if u >= 1.0:
-        return 1.0
-    return u * u * (3.0 - 2.0 * u)
-
-
-@njit(cache=True, nogil=True)
+@njit(**_INNER)
 def design(values, rows, lambdas, mode_mask, sample_rate, time_s, lfo_sin, modes):
     """Fill ``modes`` (frequency in Hz, linear gain, decay rate alpha = pi f / Q in 1/s).
 
@@ -157,7 +152,9 @@ def design(values, rows, lambdas, mode_mask, sample_rate, time_s, lfo_sin, modes
             rel = min(vibrato_depth / freqs[loudest], VIBRATO_MAX_RELATIVE_DEPTH)
             rel *= min(1.0, vibrato_rate / VIBRATO_FADE_RATE_HZ)
             factor = 1.0 + rel * lfo_sin
-    slide = 1.0 + SLIDE_RISE * values[rows.slide] * _smoothstep(time_s / values[rows.slide_time_s])
+    u = time_s / values[rows.slide_time_s]
+    rise = 0.0 if u <= 0.0 else (1.0 if u >= 1.0 else u * u * (3.0 - 2.0 * u))  # smoothstep
+    slide = 1.0 + SLIDE_RISE * values[rows.slide] * rise
     phasor_hz = freqs[0] * factor
     for i in range(N_MODES):
         f = freqs[i] * factor
@@ -180,7 +177,7 @@ def design(values, rows, lambdas, mode_mask, sample_rate, time_s, lfo_sin, modes
     return phasor_hz, norm
 
 
-@njit(cache=True, nogil=True)
+@njit(**_INNER)
 def bandpass(centre_hz, band_q, sample_rate, coef, b):
     """Band ``b``'s coefficients into ``coef[:, b]``: (b0 of the first section, a1, a2, b0
     of the second) of two identical RBJ constant-peak band-pass sections (b1 = 0, b2 = -b0).
@@ -205,7 +202,7 @@ def design_modes(p: TwangParams, *, sample_rate: float) -> list[Mode]:
     (group, frequency in Hz, gain, T60 in s); modes silenced by Nyquist or by a zero group
     gain are left out."""
     modes = new_modes()
-    design(control_vector(p), ROWS, mode_lambdas(), np.ones(N_MODES), float(sample_rate), 0.0, 0.0, modes)
+    design.py_func(control_vector(p), ROWS, mode_lambdas(), np.ones(N_MODES), float(sample_rate), 0.0, 0.0, modes)
     return [Mode(group=GROUPS[i // MODES_PER_GROUP], frequency_hz=float(modes.frequency_hz[i]),
                  gain=float(modes.gain[i]), t60_s=float(math.log(1000.0) / modes.alpha_per_s[i]))
             for i in range(N_MODES) if modes.gain[i] > 0.0]

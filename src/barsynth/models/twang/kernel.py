@@ -14,6 +14,13 @@ phasor -> cosine, to rounding); the powers are tabulated once per design, so a f
 oscillator bank is a matrix-vector product, and ``z`` advances once per frame. Gains ramp
 linearly inside a frame, so a parameter change never steps the output. Modes that have
 decayed below ``CULL_LEVEL`` are skipped.
+
+Compile time (the first render after an install): only :func:`process` is cached and called
+from Python; the functions it calls have no wrappers (``_INNER``) and it calls every one of
+them itself (``_follow``, :func:`~.design.design`, ``_control``, ``_render``, the bands...):
+numba links a callee's code into its caller's module and optimises and emits it again there,
+so a deeper call tree compiles the same code once per level. Numba-level inlining
+(``inline="always"``) costs more than it saves here, and ``settle`` (once a note) is NumPy.
 """
 
 from __future__ import annotations
@@ -25,7 +32,7 @@ import numpy as np
 from numba import njit
 
 from ...dsp.noise import uniform_noise
-from ...dsp.smoothing import LEFT, TARGET, next_value, start_ramp
+from ...dsp.smoothing import CURRENT, LEFT, TARGET, next_value, start_ramp
 from .design import MODES_PER_GROUP, N_BANDS, N_OSC, bandpass, design
 from .table import Rows
 
@@ -96,56 +103,68 @@ N_SCALARS = 11
 # Per-sample loops may fuse a*b+c into one FMA instruction (shorter recursion
 # latency); nothing else of fast-math. The result is still deterministic.
 _CONTRACT = {"contract"}
+# The kernel's inner functions are only called from compiled code: no wrapper to call them
+# from Python (nor a C one), and no cache of their own (process's cache holds them).
+_INNER = {"nogil": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
 
 CULL_LEVEL = 1e-7  # a mode whose output amplitude is below -140 dBFS is not computed
 BAND_PEAK_FACTOR = 8.0  # bound on a band's output relative to its white-noise rms, for culling
 
 
-@njit(cache=True, nogil=True)
 def settle(controls):
-    """Every control at its target now (a trigger, a reset)."""
-    for i in range(controls.values.size):
-        start_ramp(controls.ramps[i], controls.kinds[i], controls.target[i], 0)
-        controls.values[i] = controls.target[i]
+    """Every control at its target now (a trigger, a reset): what ``start_ramp(ramp, kind,
+    target, 0)`` does to every slot (the steps are left as they are), in NumPy: once a note,
+    not worth a compiled function."""
+    ramps = controls.ramps
+    ramps[:, TARGET] = controls.target
+    ramps[:, CURRENT] = controls.target
+    ramps[:, LEFT] = 0.0
+    controls.values[:] = controls.target
 
 
-@njit(cache=True, nogil=True)
-def _follow(controls, ramp_frames):
-    """One frame along every control's ramp (a new target starts a ramp from where the
-    control is); whether any control moved or still moves."""
+@njit(**_INNER)
+def _follow(setup, controls, note):
+    """Start of a control frame: one frame along every control's ramp (a new target starts
+    a ramp from where the control is). Returns ``(design, time_s, lfo_sin)``: whether to
+    design anew (anything moves, or the frame after), the time since the trigger and the
+    vibrato's sine for :func:`~.design.design`."""
+    sample_rate = setup.sample_rate
+    rows = setup.rows
+    params = controls.values
+    scal = note.scalars
     moving = False
     for i in range(controls.values.size):
         ramp = controls.ramps[i]
         if controls.target[i] != ramp[TARGET]:
-            start_ramp(ramp, controls.kinds[i], controls.target[i], ramp_frames)
+            start_ramp(ramp, controls.kinds[i], controls.target[i], setup.ramp_frames)
         value = next_value(ramp, controls.kinds[i])
         if value != controls.values[i] or ramp[LEFT] > 0.0:
             moving = True
         controls.values[i] = value
-    return moving
+    time_s = scal[S_TIME] / sample_rate
+    vibrato = params[rows.vibrato_rate_hz] > 0.0 and params[rows.vibrato_depth_hz] > 0.0
+    sliding = params[rows.slide] > 0.0 and time_s <= params[rows.slide_time_s] + setup.frame_len / sample_rate
+    force = scal[S_FORCE] != 0.0
+    dynamic = force or moving or vibrato or sliding
+    if not dynamic and scal[S_DYNAMIC] == 0.0:
+        return False, time_s, 0.0  # nothing moves and the last design is the resting one
+    # Design; a static frame right after a dynamic one designs once more, so the
+    # resting state (vibrato off, slide finished, targets reached) is exact.
+    scal[S_DYNAMIC] = 1.0 if dynamic else 0.0
+    lfo_sin = math.sin(2.0 * math.pi * scal[S_LFO_PHASE]) if vibrato else 0.0
+    return True, time_s, lfo_sin
 
 
-@njit(cache=True, nogil=True)
-def _control(setup, controls, note, modes, osc, bands):
-    """Start of a control frame: follow the ramps, and if anything moves, design anew."""
+@njit(**_INNER)
+def _control(setup, controls, note, modes, osc, bands, phasor_hz, norm):
+    """After a design (``modes``, and :func:`~.design.design`'s ``phasor_hz`` and ``norm``):
+    the oscillators' and bands' coefficients and gains for this frame."""
     sample_rate = setup.sample_rate
     frame_len = setup.frame_len
     rows = setup.rows
     params = controls.values
     scal = note.scalars
-    moving = _follow(controls, setup.ramp_frames)
-    time_s = scal[S_TIME] / sample_rate
-    vibrato = params[rows.vibrato_rate_hz] > 0.0 and params[rows.vibrato_depth_hz] > 0.0
-    sliding = params[rows.slide] > 0.0 and time_s <= params[rows.slide_time_s] + frame_len / sample_rate
     force = scal[S_FORCE] != 0.0
-    dynamic = force or moving or vibrato or sliding
-    if not dynamic and scal[S_DYNAMIC] == 0.0:
-        return  # nothing moves and the last design is the resting one
-    # Design; a static frame right after a dynamic one designs once more, so the
-    # resting state (vibrato off, slide finished, targets reached) is exact.
-    scal[S_DYNAMIC] = 1.0 if dynamic else 0.0
-    lfo_sin = math.sin(2.0 * math.pi * scal[S_LFO_PHASE]) if vibrato else 0.0
-    phasor_hz, norm = design(params, rows, setup.lambdas, setup.mode_mask, sample_rate, time_s, lfo_sin, modes)
     freqs = modes.frequency_hz
     gains = modes.gain
     alphas = modes.alpha_per_s
@@ -195,7 +214,7 @@ def _control(setup, controls, note, modes, osc, bands):
     scal[S_FORCE] = 0.0
 
 
-@njit(cache=True, nogil=True)
+@njit(**_INNER)
 def _cull(osc, bands):
     """Choose the modes worth computing this frame; returns (n_osc, n_bands)."""
     n_osc = 0
@@ -226,7 +245,7 @@ def process(out, setup, controls, note, modes, osc, bands):
     on with exactly the same arithmetic, so block size never changes a sample.
     """
     n = out.shape[0]
-    pos = 0
+    pos = np.int64(0)  # not the literal 0: _render is compiled once, for int64 (not also for Literal[int](0))
     frame_len = setup.frame_len
     lfo_step = frame_len / setup.sample_rate
     scal = note.scalars
@@ -234,11 +253,29 @@ def process(out, setup, controls, note, modes, osc, bands):
     while pos < n:
         frame_pos = int(scal[S_FRAME_POS])
         if frame_pos == 0:
-            _control(setup, controls, note, modes, osc, bands)
+            redesign, time_s, lfo_sin = _follow(setup, controls, note)
+            if redesign:
+                phasor_hz, norm = design(controls.values, setup.rows, setup.lambdas, setup.mode_mask,
+                                         setup.sample_rate, time_s, lfo_sin, modes)
+                _control(setup, controls, note, modes, osc, bands, phasor_hz, norm)
             scal[S_LFO_PHASE] = (scal[S_LFO_PHASE] + controls.values[setup.rows.vibrato_rate_hz] * lfo_step) % 1.0
             counts[0], counts[1] = _cull(osc, bands)
         m = min(n - pos, frame_len - frame_pos)
-        _render(out, pos, frame_pos, m, note, osc, bands)
+        _render(out, pos, frame_pos, m, note, osc)
+        # The free-bar bands, two at a time (two independent recursions per loop keep the
+        # FPU busy), on the noise _render left in note.diff.
+        dst = out[pos:pos + m]
+        diff = note.diff[:m]
+        a = 0
+        while a < counts[1]:
+            b = bands.active[a]
+            c = bands.active[a + 1] if a + 1 < counts[1] else -1
+            if c < 0:
+                _band(dst, diff, frame_pos, m, b, bands.state, bands.coef, bands.env, bands.powers, bands.gain)
+            else:
+                _band_pair(dst, diff, frame_pos, m, b, c, bands.state, bands.coef, bands.env, bands.powers,
+                           bands.gain)
+            a += 2
         frame_pos += m
         if frame_pos == frame_len:
             _end_frame(frame_len, osc, bands)
@@ -248,7 +285,7 @@ def process(out, setup, controls, note, modes, osc, bands):
         pos += m
 
 
-@njit(cache=True, nogil=True)
+@njit(**_INNER)
 def _end_frame(frame_len, osc, bands):
     """Advance phasors and envelopes by one frame; ramps land on their targets."""
     osc_z = osc.z
@@ -271,9 +308,10 @@ def _end_frame(frame_len, osc, bands):
             band_gain[1, b] = 0.0
 
 
-@njit(cache=True, nogil=True, fastmath=_CONTRACT)
-def _render(out, start, k0, m, note, osc, bands):
-    """Samples ``k0 .. k0+m-1`` of the current frame into ``out[start:start+m]``."""
+@njit(fastmath=_CONTRACT, **_INNER)
+def _render(out, start, k0, m, note, osc):
+    """Samples ``k0 .. k0+m-1`` of the current frame into ``out[start:start+m]``: the
+    oscillators, and the free bar's noise into ``note.diff`` (:func:`process` runs the bands)."""
     scal = note.scalars
     n_osc = note.counts[0]
     n_bands = note.counts[1]
@@ -328,26 +366,9 @@ def _render(out, start, k0, m, note, osc, bands):
     scal[S_X1] = x1
     scal[S_X2] = x2
     rng[0] = state
-    # Bands two at a time: two independent recursions per loop keep the FPU busy.
-    band_state = bands.state
-    band_coef = bands.coef
-    band_env = bands.env
-    band_pow = bands.powers
-    band_gain = bands.gain
-    band_active = bands.active
-    a = 0
-    while a < n_bands:
-        b = band_active[a]
-        c = band_active[a + 1] if a + 1 < n_bands else -1
-        if c < 0:
-            _band(dst, diff, k0, m, b, band_state, band_coef, band_env, band_pow, band_gain)
-        else:
-            _band_pair(dst, diff, k0, m, b, c, band_state, band_coef, band_env,
-                       band_pow, band_gain)
-        a += 2
 
 
-@njit(cache=True, nogil=True, fastmath=_CONTRACT)
+@njit(fastmath=_CONTRACT, **_INNER)
 def _band(dst, diff, k0, m, b, band_state, band_coef, band_env, band_pow, band_gain):
     """One 4th-order band (two direct-form-I sections) with its gain and decay."""
     b0a = band_coef[0, b]
@@ -387,7 +408,7 @@ def _band(dst, diff, k0, m, b, band_state, band_coef, band_env, band_pow, band_g
     band_state[3, b] = yb2
 
 
-@njit(cache=True, nogil=True, fastmath=_CONTRACT)
+@njit(fastmath=_CONTRACT, **_INNER)
 def _band_pair(dst, diff, k0, m, b, c, band_state, band_coef, band_env, band_pow,
                band_gain):
     """Two bands in one loop; the same arithmetic as :func:`_band` for each."""

@@ -9,6 +9,7 @@ import numpy as np
 from ...dsp.noise import noise_state
 from ...dsp.smoothing import CURRENT, LEFT, LINEAR, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps
 from ...errors import ParameterError
+from ...jitstart import compiled_for
 from ..base import Voice
 from . import kernel as K
 from .design import N_BANDS, N_MODES, N_OSC, mode_lambdas, new_modes
@@ -87,6 +88,7 @@ class TwangVoice(Voice):
         self._modes = new_modes()
         self._osc = K.Oscillators(np.zeros((2, N_OSC)), np.zeros((2, N_OSC, frame_len + 1)), np.zeros((3, N_OSC)),
                                   np.zeros(N_OSC, dtype=np.int64))
+        self._run = None  # process compiled for these records, resolved at the first render (jitstart.compiled_for)
         self._bands = K.Bands(np.zeros((4, N_BANDS)), np.zeros((4, N_BANDS)), np.zeros(N_BANDS),
                               np.zeros((N_BANDS, frame_len + 1)), np.zeros((3, N_BANDS)),
                               np.zeros(N_BANDS, dtype=np.int64))
@@ -129,4 +131,8 @@ class TwangVoice(Voice):
         scal[K.S_X2] = 0.0
 
     def _render(self, out: np.ndarray) -> None:
-        K.process(out, self._setup, self._controls, self._note, self._modes, self._osc, self._bands)
+        run = self._run
+        if run is None:  # process's dispatcher would type the five records at every call (~6 us)
+            run = self._run = compiled_for(K.process, out, self._setup, self._controls, self._note, self._modes,
+                                           self._osc, self._bands)
+        run(out, self._setup, self._controls, self._note, self._modes, self._osc, self._bands)
