@@ -724,3 +724,34 @@ def test_auto_ends_at_the_same_sample_whatever_the_block_sizes(monkeypatch):
         y = auto(*case)
         assert np.array_equal(x, y)
         assert round(x.size / 441) == x.size / 441  # a whole number of 10 ms hops
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process's CPU time from /proc")
+@pytest.mark.parametrize("after_cpu_s", [1.2, 1.8, 2.4])
+def test_ctrl_c_while_numba_compiles_stops_after_the_compile(tmp_path, after_cpu_s):
+    """The first render after install compiles its kernels (imports take about 0.6 s of CPU,
+    compiling fd's kernels several s): a Ctrl-C then (numba's cache empty, the signal sent at
+    several points of the compile) still ends in the one line and no file, once it is done.
+    (Raised inside numba's compiler, a KeyboardInterrupt was swallowed or became a RuntimeError.)"""
+    import signal
+    import time
+
+    out = tmp_path / "long.wav"
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    proc = subprocess.Popen([sys.executable, "-m", "barsynth", "render", "fd", "--set", "points=200",
+                             "--duration", "600", "-o", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    try:
+        deadline = time.monotonic() + 120.0
+        while proc.poll() is None and _cpu_seconds(proc.pid) < after_cpu_s and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert proc.poll() is None, proc.communicate()
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=120)  # the compile goes on: generous on a loaded machine
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, stderr.decode()[-2000:]
+    assert stderr.decode() == "barsynth: interrupted; nothing written\n" and stdout == b""
+    assert not out.exists()

@@ -447,6 +447,41 @@ class _Progress:
             self.drawn = False
 
 
+class _CtrlCBetweenBlocks:
+    """Within the block, a Ctrl-C (SIGINT) is noted and acted on after the block being rendered
+    (:meth:`check`, called between blocks): a KeyboardInterrupt raised anywhere else could land
+    inside numba compiling a kernel (the first render after install), which swallows it (a
+    ctypes callback: "Exception ignored") or turns it into a RuntimeError. A second Ctrl-C acts at
+    once. Only in the main thread (where Python delivers signals)."""
+
+    def __init__(self) -> None:
+        self.asked = False
+        self.previous: Any = None
+
+    def __enter__(self) -> _CtrlCBetweenBlocks:
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            self.previous = signal.signal(signal.SIGINT, self._note)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        import signal
+
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
+
+    def _note(self, signum: int, frame: Any) -> None:
+        if self.asked:
+            raise KeyboardInterrupt
+        self.asked = True
+
+    def check(self) -> None:
+        if self.asked:
+            raise KeyboardInterrupt
+
+
 def _render_samples(model, resolved, *, duration: float | str, rate: float, seed: int, raw: bool):
     """The model's samples, rendered in blocks: a progress line on a terminal, Ctrl-C stops it
     (nothing is written), and a warning line when ``auto`` stops at its cap."""
@@ -455,8 +490,14 @@ def _render_samples(model, resolved, *, duration: float | str, rate: float, seed
     from .models.rendering import NeverQuietWarning, watching
 
     progress = _Progress()
+    ctrl_c = _CtrlCBetweenBlocks()
+
+    def watch(done_s: float, total_s: float | None, below_peak_db: float | None) -> None:
+        progress(done_s, total_s, below_peak_db)
+        ctrl_c.check()
+
     try:
-        with warnings.catch_warnings(record=True) as caught, watching(progress):
+        with warnings.catch_warnings(record=True) as caught, watching(watch), ctrl_c:
             warnings.simplefilter("always", NeverQuietWarning)
             samples = model.render(resolved, duration_s=duration, sample_rate=rate, seed=seed,
                                    normalize=not raw)
