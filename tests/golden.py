@@ -8,7 +8,9 @@ Each sound is hashed exactly (SHA-256 of its float64 samples). NumPy's vectorise
 ``sin``/``exp`` may differ in the last bit between CPU families (AVX-512 SVML against
 AVX2), so the file also records the CPU features it was made with and, per sound, a
 fingerprint (the RMS of each 10 ms frame): on the same CPU features the hash must match
-exactly; on other ones the fingerprint must match within 1e-9 relative.
+exactly; on other ones the fingerprints must match within 1e-9 relative (the RMS of each
+frame, and a signed one that sees a flipped sign). "The same features" are those that can
+change a float64 sample (:data:`FLOAT64_FEATURES`), not every feature of the CPU.
 """
 
 from __future__ import annotations
@@ -65,6 +67,13 @@ GLIDES: dict[str, dict[str, Any]] = {
 }
 
 
+# The features that can change a float64 sample: NumPy's float64 exp/log/sin/cos dispatch on
+# AVX512_SKX (SVML), AVX512F and AVX2 with FMA3, and numba compiles for the host, contracting
+# a*b+c into one FMA where its kernels allow it. Others (AVX512FP16, AVX512_SPR, VNNI, ...)
+# touch no float64 arithmetic: a newer CPU of the same family gives the very same samples.
+FLOAT64_FEATURES = ("AVX512_SKX", "AVX512F", "AVX2", "FMA3", "AVX", "SSE42")
+
+
 def cpu_features() -> str:
     """The SIMD features NumPy dispatches on here, as one sorted string."""
     try:
@@ -72,6 +81,12 @@ def cpu_features() -> str:
     except ImportError:  # NumPy 1.x
         from numpy.core._multiarray_umath import __cpu_features__ as features
     return ",".join(sorted(name for name, on in features.items() if on))
+
+
+def float64_family(features: str) -> str:
+    """Those of ``features`` (a :func:`cpu_features` string) that can change a float64 sample."""
+    present = set(features.split(","))
+    return ",".join(name for name in FLOAT64_FEATURES if name in present)
 
 
 def sound_cases() -> list[tuple[str, str, dict[str, Any], int, dict[str, Any] | None]]:
@@ -108,10 +123,21 @@ def render_case(model: str, params: dict[str, Any], rate: int, change: dict[str,
     return np.concatenate([head, tail])
 
 
-def fingerprint(samples: np.ndarray, rate: int) -> list[float]:
+def frames(samples: np.ndarray, rate: int) -> np.ndarray:
     frame = int(FRAME_S * rate)
-    usable = samples[: samples.size // frame * frame].reshape(-1, frame)
-    return [float(x) for x in np.sqrt(np.mean(usable ** 2, axis=1))]
+    return samples[: samples.size // frame * frame].reshape(-1, frame)
+
+
+def fingerprint(samples: np.ndarray, rate: int) -> list[float]:
+    """The RMS of each 10 ms frame."""
+    return [float(x) for x in np.sqrt(np.mean(frames(samples, rate) ** 2, axis=1))]
+
+
+def signed_fingerprint(samples: np.ndarray, rate: int) -> list[float]:
+    """Each 10 ms frame's samples weighted by a ramp (sum of k x[k]): unlike the RMS, it sees
+    a flipped sign or samples in another order."""
+    usable = frames(samples, rate)
+    return [float(x) for x in usable @ np.arange(1.0, usable.shape[1] + 1.0)]
 
 
 def digest(samples: np.ndarray) -> str:
@@ -122,7 +148,8 @@ def measure_all() -> dict[str, Any]:
     sounds = {}
     for name, model, params, rate, change in sound_cases():
         samples = render_case(model, params, rate, change)
-        sounds[name] = {"sha256": digest(samples), "rms": fingerprint(samples, rate)}
+        sounds[name] = {"sha256": digest(samples), "rms": fingerprint(samples, rate),
+                        "ramp": signed_fingerprint(samples, rate)}
     return {"cpu_features": cpu_features(), "sounds": sounds}
 
 
