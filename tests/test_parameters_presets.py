@@ -199,9 +199,24 @@ def test_a_typed_record_is_checked_against_its_table():
         length_m: float
         shape: str
 
-    for record in (WrongType, WrongOrder):
+    @dataclasses.dataclass(frozen=True, kw_only=True)
+    class SameDefaults:
+        length_m: float = 0.3
+        count: int = 2
+        shape: str = "bar"
+
+    @dataclasses.dataclass(frozen=True, kw_only=True)
+    class OtherDefault:
+        length_m: float = 0.3
+        count: int = 3  # the row says 2
+        shape: str = "bar"
+
+    assert ParameterTable("x", rows, record=SameDefaults).resolve() == SameDefaults()
+    for record in (WrongType, WrongOrder, OtherDefault):
         with pytest.raises(TypeError):
             ParameterTable("x", rows, record=record)
+    with pytest.raises(TypeError, match="count has default 3; its table row's default is 2"):
+        ParameterTable("x", rows, record=OtherDefault)
 
 
 def test_a_material_row_tells_the_page_what_each_choice_sets():
