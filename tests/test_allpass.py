@@ -174,7 +174,7 @@ def test_a_pluck_rings_each_mode_as_the_release_and_describe_say():
          "pluck_displacement_mm": 0.5, "release_time_ms": 0.05}
     x = raw(p, 0.8)
     voice = AllpassVoice(p, sample_rate=RATE)
-    force = p["pluck_displacement_mm"] * 1e-3 / voice._compliance()
+    force = p["pluck_displacement_mm"] * 1e-3 / voice._strike_point.compliance_m_n
     skip = int(0.03 * RATE)
     for mode in resonances(p)[:2]:
         partial = measure_partial(x[skip:], RATE, mode.frequency_hz)

@@ -169,7 +169,7 @@ def test_process_into_a_buffer_allocates_nothing(changes, dtype):
     finally:
         tracemalloc.stop()
     assert after - before < 1024 and peak - before < 4096, (after - before, peak - before)
-    assert voice._bow.lifted_at < 603 * block
+    assert voice.driven_until < 603 * block
 
 
 def test_process_into_a_buffer_gives_the_samples_of_a_new_array():

@@ -104,9 +104,9 @@ def test_release_without_a_moving_bow_changes_nothing():
     voice = BandedVoice(bowed(bow_duration_s=0.5), sample_rate=RATE)
     voice.trigger()
     voice.process(int(1.06 * RATE))
-    lift = voice._bow.lifted_at
+    lift = voice.driven_until
     voice.release()
-    assert voice._bow.lifted_at == lift
+    assert voice.driven_until == lift
 
 
 def test_changing_the_modes_while_bowing_keeps_the_bar_sounding():

@@ -27,6 +27,7 @@ MODULES = [
     "barsynth.models.fd",
     "barsynth.models.fd.voice",
     "barsynth.models.crossfade",
+    "barsynth.exciters.base",
     "barsynth.physics.grid",
     "barsynth.physics.profiles",
     "barsynth.physics.undercut",
@@ -73,7 +74,7 @@ def test_the_contracts_example_model_keeps_the_contract(capsys):
     from pathlib import Path
 
     doc = (Path(__file__).resolve().parents[1] / "docs" / "contract.md").read_text(encoding="utf-8")
-    (block,) = re.findall(r"```python\n(.*?)```", doc, flags=re.S)
+    block, _exciter = re.findall(r"```python\n(.*?)```", doc, flags=re.S)
     space: dict = {}
     exec(compile(block, "docs/contract.md", "exec"), space)
     assert capsys.readouterr().out == "440.0 24000\n"
@@ -82,3 +83,21 @@ def test_the_contracts_example_model_keeps_the_contract(capsys):
     x = model.render({"t60_s": 0.2}, duration_s=0.4, normalize=False, dtype="float64")
     peak_at = lambda part: float(np.max(np.abs(part)))  # noqa: E731
     assert peak_at(x[int(0.2 * 48000):int(0.21 * 48000)]) == pytest.approx(1e-3, rel=0.03)  # T60
+
+
+def test_the_contracts_example_exciter_is_one_class_that_keeps_the_interface(capsys):
+    """docs/contract.md's new exciter runs: its in-advance force, its declared forms, its rows."""
+    import re
+    from pathlib import Path
+
+    from barsynth.exciters import Exciter
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "contract.md").read_text(encoding="utf-8")
+    _model, block = re.findall(r"```python\n(.*?)```", doc, flags=re.S)
+    space: dict = {}
+    exec(compile(block, "docs/contract.md", "exec"), space)
+    assert capsys.readouterr().out == "97 4.0\n"
+    sample = space["Sample"]
+    assert issubclass(sample, Exciter) and sample.in_advance and not sample.coupled
+    assert [row.name for row in sample.parameters()] == ["sample_force_n"]
+    assert dict(sample.parameters()[0].when)["excitation"] == ("sample",)

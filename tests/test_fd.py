@@ -281,12 +281,18 @@ def test_the_model_declares_what_it_can_do():
 def test_a_pluck_takes_its_cap_from_the_exciter(monkeypatch):
     """The cap is the pluck exciter's one constant, read when the pluck happens."""
     import barsynth.exciters.pluck as pluck_module
+    from barsynth.exciters import Pluck
     from barsynth.models.fd.design import plucked_shape
 
     voice = FdVoice({"bc": "clamped-free", "excitation": "pluck", "points": 30, "strike_position": 0.05})
-    capped = np.max(np.abs(plucked_shape(voice.parameters, voice._design.grid)))
+    hold = Pluck(voice.parameters, voice.sample_rate).coupling()
+
+    def largest() -> float:
+        return float(np.max(np.abs(plucked_shape(hold, voice._design.grid, voice.parameters.strike_position))))
+
+    capped = largest()
     monkeypatch.setattr(pluck_module, "PLUCK_REACH", 2.0 * pluck_module.PLUCK_REACH)
-    assert np.max(np.abs(plucked_shape(voice.parameters, voice._design.grid))) == pytest.approx(2.0 * capped)
+    assert largest() == pytest.approx(2.0 * capped)
 
 
 def test_a_new_level_glides_there_without_a_click():

@@ -199,9 +199,24 @@ def test_a_typed_record_is_checked_against_its_table():
         length_m: float
         shape: str
 
-    for record in (WrongType, WrongOrder):
+    @dataclasses.dataclass(frozen=True, kw_only=True)
+    class SameDefaults:
+        length_m: float = 0.3
+        count: int = 2
+        shape: str = "bar"
+
+    @dataclasses.dataclass(frozen=True, kw_only=True)
+    class OtherDefault:
+        length_m: float = 0.3
+        count: int = 3  # the row says 2
+        shape: str = "bar"
+
+    assert ParameterTable("x", rows, record=SameDefaults).resolve() == SameDefaults()
+    for record in (WrongType, WrongOrder, OtherDefault):
         with pytest.raises(TypeError):
             ParameterTable("x", rows, record=record)
+    with pytest.raises(TypeError, match="count has default 3; its table row's default is 2"):
+        ParameterTable("x", rows, record=OtherDefault)
 
 
 def test_a_material_row_tells_the_page_what_each_choice_sets():
@@ -216,11 +231,33 @@ def test_a_material_row_tells_the_page_what_each_choice_sets():
 
 
 def test_every_exciter_declares_its_forms_and_its_rows_say_when_they_act():
-    from barsynth.exciters import EXCITERS
+    from barsynth.exciters import EXCITERS, Exciter
 
     assert set(EXCITERS) == {"strike", "pluck", "bow"}
     for name, exciter in EXCITERS.items():
+        assert exciter.name == name and exciter.summary
         assert exciter.in_advance or exciter.coupled
-        assert hasattr(exciter, "force") == exciter.in_advance
+        assert (exciter.force is not Exciter.force) == exciter.in_advance
+        assert (exciter.coupling is not Exciter.coupling) == exciter.coupled
         for row in exciter.parameters():
             assert dict(row.when)["excitation"] == (name,)
+
+
+def test_an_exciter_must_implement_the_forms_it_declares():
+    from barsynth.exciters import Exciter, Force
+
+    with pytest.raises(TypeError, match="force"):
+        type("Declared", (Exciter,), {"name": "declared", "in_advance": True})
+    with pytest.raises(TypeError, match="coupling"):
+        type("Undeclared", (Exciter,), {"name": "undeclared", "coupling": lambda self: None})
+
+    class Tap(Exciter):
+        name, summary, in_advance = "tap", "a unit impulse", True
+
+        def force(self, drive):
+            return Force(np.array([self.sample_rate]), 0.0)
+
+    tap = Tap(None, 1000.0)
+    assert tap.force(None).per_sample_n.tolist() == [1000.0] and tap.driven_until == 0
+    with pytest.raises(NotImplementedError, match="tap"):
+        tap.coupling()

@@ -20,7 +20,7 @@ from barsynth.errors import ParameterError
 from barsynth.models import get_model
 from barsynth.models.fd import FdVoice
 from barsynth.models.fd.design import plucked_shape
-from barsynth.exciters import PLUCK_REACH
+from barsynth.exciters import PLUCK_REACH, Pluck
 from barsynth.physics import BOUNDARY_CONDITIONS
 
 RATE = 22050
@@ -119,7 +119,8 @@ def test_an_fd_pluck_by_a_support_holds_the_bar_out_at_most_the_reach(bc, positi
     """Was 1 / position (NaN at 1e-155): now the bar's largest deflection is the reach, exactly."""
     voice = FdVoice({"bc": bc, "excitation": "pluck", "points": 30, "strike_position": position,
                      "pluck_displacement_mm": 2.0})
-    shape = plucked_shape(voice.parameters, voice._design.grid)
+    hold = Pluck(voice.parameters, voice.sample_rate).coupling()
+    shape = plucked_shape(hold, voice._design.grid, position)
     assert np.all(np.isfinite(shape))
     assert float(np.max(np.abs(shape))) == pytest.approx(PLUCK_REACH * 2e-3, rel=1e-9)
 

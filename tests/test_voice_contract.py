@@ -40,6 +40,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from barsynth.errors import BarsynthError, ParameterError
+from barsynth.exciters import EXCITERS, Bow
 from barsynth.models import get_model, model_names
 from barsynth.models.rendering import MAX_RAW_PEAK
 from barsynth.parameters import BOOL, CHOICE, FLOATS
@@ -102,8 +103,8 @@ def model_settings(name: str, **extra) -> dict:
 
 
 def excitations(name: str) -> tuple:
-    table = get_model(name).table
-    return tuple(table["excitation"].choices) if "excitation" in table.names else (None,)
+    """The ``excitation`` of each exciter the model declares (None: a model that is its own excitation)."""
+    return tuple(e.name for e in get_model(name).exciters) or (None,)
 
 
 def excited(name: str, excitation: str | None, *, long_bow: bool = False, **extra) -> dict:
@@ -119,7 +120,7 @@ def excited(name: str, excitation: str | None, *, long_bow: bool = False, **extr
 
 
 CASES = [pytest.param(name, ex, id=f"{name}-{ex}" if ex else name) for name in MODELS for ex in excitations(name)]
-BOWED = [name for name in MODELS if "bow" in excitations(name)]
+BOWED = [name for name in MODELS if Bow in get_model(name).exciters]
 
 
 def voice_class(name: str) -> type:
@@ -431,8 +432,23 @@ def test_capabilities_are_declared_on_the_classes(name):
     for flag in ("restarts_on_trigger", "can_release", "uses_seed"):
         assert isinstance(getattr(model.voice_class, flag), bool), flag
     assert isinstance(model.reports_reference_errors, bool)
-    if "bow" in excitations(name):
+    if Bow in model.exciters:
         assert model.voice_class.can_release, "a bow stroke must be able to stop"
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_the_declared_exciters_are_the_tables_excitations(name):
+    """``Model.exciters`` names the table's ``excitation`` choices, each one of barsynth's exciters
+    with its rows in the table; a model that declares other exciters than its table is refused."""
+    model = get_model(name)
+    names = tuple(e.name for e in model.exciters)
+    assert names == (model.table["excitation"].choices if "excitation" in model.table else ())
+    for exciter in model.exciters:
+        assert EXCITERS[exciter.name] is exciter
+        assert exciter.parameters()[0].name in model.table  # (a pluck's release row is optional)
+    mismatched = type("Mismatched", (type(model),), {"exciters": model.exciters[::-1] or (Bow,)})
+    with pytest.raises(TypeError, match="excitation"):
+        mismatched()
 
 
 def _second_trigger(name: str, parameters: dict, at: int = 50 * MS, length: int = 50 * MS):
@@ -714,8 +730,7 @@ def test_random_settings_in_range_give_a_one_line_refusal_or_finite_bounded_samp
 def test_driven_until_says_when_a_bow_lets_go(name):
     """A voice that only rings out says 0; a bowed one the sample its bow is lifted at, after which
     its sound decays (render duration auto waits for it)."""
-    table = get_model(name).table
-    if "excitation" not in table.names or "bow" not in table["excitation"].choices:
+    if Bow not in get_model(name).exciters:
         voice = fresh(name, model_settings(name))
         voice.trigger()
         voice.process(1000)

@@ -267,8 +267,9 @@ class ParameterTable:
     ``record``: the model's typed, frozen, keyword-only dataclass of resolved parameters
     (``p.length_m`` reads as a float in an editor), checked here against the table: the same
     names in the same order, each annotated with its kind's type (``float``, ``int``,
-    ``bool``, ``str`` for a choice, ``tuple[float, ...]`` for a list). Without one, a
-    dataclass of untyped fields is made from the table.
+    ``bool``, ``str`` for a choice, ``tuple[float, ...]`` for a list), and a field with a
+    default has its row's. Without one, a dataclass of untyped fields is made from the table.
+    :func:`table_of` finds the table of a record.
     """
 
     def __init__(self, model: str, parameters: Iterable[Parameter], *, record: type | None = None):
@@ -285,7 +286,7 @@ class ParameterTable:
         else:
             self._check_record(record)
         self.dataclass = record
-        self.dataclass._table = self  # a class attribute, not a field: lets an error message name the model
+        _TABLES[record] = self
         for p in self.parameters:
             for name, values in p.when:
                 if name not in self._by_name or not all(
@@ -307,6 +308,11 @@ class ParameterTable:
             if typed != _FIELD_TYPES[p.kind]:
                 raise TypeError(f"{self.model}: {record.__name__}.{f.name} is annotated {typed!r}; "
                                 f"its table row ({p.kind}) needs {_FIELD_TYPES[p.kind]!r}")
+            if f.default_factory is not dataclasses.MISSING or (
+                    f.default is not dataclasses.MISSING and f.default != p.default):
+                shown = "a default factory" if f.default is dataclasses.MISSING else f"default {f.default!r}"
+                raise TypeError(f"{self.model}: {record.__name__}.{f.name} has {shown}; its table row's default "
+                                f"is {p.default!r} (give none, or the row's)")
 
     def __iter__(self):
         return iter(self.parameters)
@@ -423,6 +429,15 @@ class ParameterTable:
             acts = f" (acts only when {p.when_text()})" if p.when else ""
             lines.append(f"| `{p.name}` | {p.unit or '-'} | {span} | {default} | {p.scale} | {p.doc}{acts} |")
         return "\n".join(lines) + "\n"
+
+
+_TABLES: dict[type, ParameterTable] = {}
+"""Each record class (:attr:`ParameterTable.dataclass`) and its table."""
+
+
+def table_of(record: Any) -> ParameterTable | None:
+    """The table whose resolved record ``record`` is (None for anything else: no record)."""
+    return _TABLES.get(type(record))
 
 
 def parse_assignments(items: Iterable[str]) -> dict[str, str]:

@@ -7,10 +7,9 @@ steady amplitude that follows the velocity. The same measurement as on a real
 bar: bow at each setting long enough to settle, then read the velocity of the
 bar at the bow point.
 
-Works with any barsynth model whose parameter table has ``excitation = bow``,
-``bow_velocity_m_s``, ``bow_force_n``, ``bow_position``, ``bow_duration_s`` and
-``pickup_position`` (the pick-up is moved to the bow so the output is the bar's
-velocity there).
+Works with any barsynth model that takes the :class:`~barsynth.exciters.Bow` (its
+``exciters``; the bow's rows come with it) and has a ``pickup_position``, as every bar
+model does (the pick-up is moved to the bow so the output is the bar's velocity there).
 """
 
 from __future__ import annotations
@@ -31,7 +30,6 @@ SUSTAIN_FRACTION = 0.05
 """A setting sustains when the steady RMS velocity is at least this fraction of the bow velocity ..."""
 STEADY_TOLERANCE = 0.1
 """... and it differs from the window before by less than this fraction (it has settled)."""
-_NEEDED = ("excitation", "bow_velocity_m_s", "bow_force_n", "bow_position", "bow_duration_s", "pickup_position")
 
 
 @dataclass(frozen=True)
@@ -114,15 +112,14 @@ def bow_map(model: Any, parameters: Any = None, *, velocities_m_s: Any = None, f
     >>> found.sustained.tolist()
     [[False, True, False]]
     """
-    from ..models.base import resolve_parameters
+    from ..exciters import Bow
+    from ..models.base import Model, resolve_parameters
     from ..models.rendering import check_sample_rate
 
-    from ..models.base import Model
-
-    table = model.table if isinstance(model, Model) else None
-    if table is None or not all(name in table.names for name in _NEEDED) or "bow" not in table["excitation"].choices:
+    if not (isinstance(model, Model) and Bow in model.exciters):
         shown = repr(model.name) if isinstance(model, Model) else show_value(model)
         raise ParameterError(f"model {shown} cannot be bowed; allowed: a model with excitation = bow")
+    table = model.table
     duration_s = check_number("duration_s", duration_s, "s", minimum=SHORTEST_S, maximum=30.0)
     rate = check_sample_rate(sample_rate)
     base = table.as_dict(resolve_parameters(model, parameters))
@@ -133,9 +130,8 @@ def bow_map(model: Any, parameters: Any = None, *, velocities_m_s: Any = None, f
         forces_n = np.geomspace(f_param.minimum, f_param.maximum, 16)
     velocities = _grid("velocities_m_s", velocities_m_s, v_param)
     forces = _grid("forces_n", forces_n, f_param)
-    base.update(excitation="bow", pickup_position=base["bow_position"], bow_duration_s=duration_s + 1.0)
-    if "level_db" in base:
-        base["level_db"] = 0.0
+    base.update(excitation=Bow.name, pickup_position=base["bow_position"], bow_duration_s=duration_s + 1.0,
+                level_db=0.0)  # (every model has a level_db: tests/test_voice_contract.py)
     count = int(round(duration_s * rate))
     amplitude = np.zeros((forces.size, velocities.size))
     sustained = np.zeros_like(amplitude, dtype=bool)

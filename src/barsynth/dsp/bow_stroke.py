@@ -13,6 +13,17 @@ kept in one array that the bowed kernel reads per sample with :func:`line_value`
 so every value is a function of the absolute sample index only: blocks of any size
 give exactly the samples of one long block, and no per-sample arrays are built
 (measured: building them with NumPy cost as much as the bowed kernel itself).
+
+Why these are not :mod:`barsynth.dsp.smoothing` ramps, although a glide of the bow's
+velocity or force is a parameter glide (its length is smoothing's
+:func:`~barsynth.dsp.smoothing.ramp_steps`): a stroke is an envelope of several
+breakpoints set in advance (press, move, slow, rest, lift), which a ramp that only
+knows its next target cannot hold; the kernel reads each line at any sample index
+(``value(row, index)``, ``held_until`` to skip a held stretch) instead of stepping a
+state once a sample; and a line's value is ``v0 + (v1 - v0) (x - t0) / (t1 - t0)``,
+where a linear ramp adds ``(v1 - v0) / steps`` once a step: the rounding differs, so
+the bowed sounds would change. The velocity and force glides share the stroke's
+lines, so one reader serves all four.
 """
 
 from __future__ import annotations

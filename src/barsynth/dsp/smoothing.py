@@ -8,6 +8,13 @@ then holds. A new target mid-ramp starts a new ramp from where the value is.
 The state is a small float64 array (``SMOOTHED_STATE`` slots: current, target, step, steps
 left), so numba kernels carry it between blocks and step it with :func:`next_value`; the
 :class:`SmoothedValue` class wraps the same functions for Python callers.
+
+Every model's parameter glides use it (the bar models' level, the twangs' controls). Two
+envelopes read by sample index keep their own arithmetic, with their lengths from
+:func:`ramp_steps`: a bow's stroke and its velocity and force glides
+(:mod:`barsynth.dsp.bow_stroke`: breakpoint lines the kernel reads at any sample) and the
+fade-out of a replaced all-pass waveguide (:mod:`barsynth.models.allpass.voice`: exact gains
+read from its end); why, each module says.
 """
 
 from __future__ import annotations

@@ -2,14 +2,17 @@
 
 Source: barsynth spec 3.1 (a bowed bar sustains while the bow moves and stops when it stops);
 the friction itself is :mod:`barsynth.dsp.friction`, solved by each resonator with its step
-(the coupled form only: the force depends on the bar's velocity under the bow).
+(the coupled form only: the force depends on the bar's velocity under the bow). Its record is
+the stroke's :class:`~barsynth.dsp.bow_stroke.BowControls` (lines in absolute sample time:
+why they are not :mod:`barsynth.dsp.smoothing` ramps is said there).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Protocol
 
 from ..dsp.bow_stroke import FORCE, LIFT_DELAY_S, VELOCITY, BowControls
+from ..dsp.smoothing import ramp_steps
 from ..parameters import Parameter
 from .base import Exciter
 
@@ -17,16 +20,34 @@ BOW_GLIDE_S = 0.020  # a new bow speed or force is reached over this time
 BOWED = {"excitation": ("bow",)}
 
 
-class Bow(Exciter):
-    """The bow of a voice at ``sample_rate`` Hz: :attr:`controls` holds its lines for the kernel."""
+class BowSettings(Protocol):
+    """What a bow reads from a model's record: its rows (:meth:`Bow.parameters`) but the
+    position, which the resonator reads."""
+
+    @property
+    def bow_velocity_m_s(self) -> float: ...
+
+    @property
+    def bow_force_n(self) -> float: ...
+
+    @property
+    def bow_duration_s(self) -> float: ...
+
+    @property
+    def bow_ramp_ms(self) -> float: ...
+
+
+class Bow(Exciter[BowSettings]):
+    """The bow of a voice at ``sample_rate`` Hz: its record (:meth:`coupling`) holds its lines for
+    the kernel, which the voice reads from sample ``now`` on and advances."""
 
     name = "bow"
+    summary = "a bow stroke"
     coupled = True  # friction at the bow point, solved with the bar's step (banded, fd)
 
-    def __init__(self, parameters: Any, sample_rate: float):
-        self.sample_rate = sample_rate
-        self._params = parameters
-        self.controls = BowControls(velocity_m_s=parameters.bow_velocity_m_s, force_n=parameters.bow_force_n)
+    def __init__(self, settings: BowSettings, sample_rate: float):
+        super().__init__(settings, sample_rate)
+        self.controls = BowControls(velocity_m_s=settings.bow_velocity_m_s, force_n=settings.bow_force_n)
 
     @staticmethod
     def parameters(*, position: float = 0.0, velocity_m_s: float = 0.3, force_n: float = 3.0) -> list[Parameter]:
@@ -45,42 +66,35 @@ class Bow(Exciter):
                       "how long the bow takes to press and speed up, and to slow to rest", scale="log", when=BOWED),
         ]
 
+    def coupling(self) -> BowControls:
+        """The bow's speed, pressure, velocity and force lines, read by the resonator's kernel at
+        ``controls.now`` and after (the voice advances ``now``): the coupled form."""
+        return self.controls
+
     def _samples(self, seconds: float) -> int:
         return int(round(seconds * self.sample_rate))
 
     def start(self) -> None:
         """A stroke from now (carrying on from the present speed and pressure)."""
-        p = self._params
-        self.controls.start(duration=self._samples(p.bow_duration_s), ramp=self._samples(p.bow_ramp_ms * 1e-3),
+        s = self.settings
+        self.controls.start(duration=self._samples(s.bow_duration_s), ramp=self._samples(s.bow_ramp_ms * 1e-3),
                             lift_delay=self._samples(LIFT_DELAY_S))
 
-    def stop(self) -> None:
+    def release(self) -> None:
         """The bow slows to rest now, damps the bar and is lifted (one not moving is left as it is)."""
-        self.controls.stop(ramp=self._samples(self._params.bow_ramp_ms * 1e-3),
+        self.controls.stop(ramp=self._samples(self.settings.bow_ramp_ms * 1e-3),
                            lift_delay=self._samples(LIFT_DELAY_S))
 
-    def update(self, parameters: Any) -> None:
-        """New parameters: a changed bow velocity or force glides there over ``BOW_GLIDE_S``."""
-        old, self._params = self._params, parameters
-        length = self._samples(BOW_GLIDE_S)
-        if parameters.bow_velocity_m_s != old.bow_velocity_m_s:
-            self.controls.glide(VELOCITY, parameters.bow_velocity_m_s, length)
-        if parameters.bow_force_n != old.bow_force_n:
-            self.controls.glide(FORCE, parameters.bow_force_n, length)
+    def update(self, settings: BowSettings) -> None:
+        """New settings: a changed bow velocity or force glides there over ``BOW_GLIDE_S``."""
+        old, self.settings = self.settings, settings
+        steps = ramp_steps(BOW_GLIDE_S, self.sample_rate)
+        if settings.bow_velocity_m_s != old.bow_velocity_m_s:
+            self.controls.glide(VELOCITY, settings.bow_velocity_m_s, steps)
+        if settings.bow_force_n != old.bow_force_n:
+            self.controls.glide(FORCE, settings.bow_force_n, steps)
 
     @property
-    def now(self) -> int:
-        """The absolute sample index the bow's lines are read at next."""
-        return self.controls.now
-
-    @now.setter
-    def now(self, index: int) -> None:
-        self.controls.now = index
-
-    @property
-    def lines(self) -> Any:
-        return self.controls.lines
-
-    @property
-    def lifted_at(self) -> int:
+    def driven_until(self) -> int:
+        """The sample index at which the bow is lifted (until another stroke)."""
         return self.controls.lifted_at

@@ -11,13 +11,14 @@ of the bar would follow: there the force is capped so that no point moves more t
 from __future__ import annotations
 
 import math
-from typing import Any
+from dataclasses import dataclass
+from typing import Protocol, cast
 
 import numpy as np
 
 from ..dsp.mallet import release_ramp
 from ..parameters import Parameter
-from .base import DrivePoint, Exciter
+from .base import DrivePoint, Exciter, Force
 
 PLUCK_REACH = 10.0
 """A pluck moves no point of the bar more than this many times ``pluck_displacement_mm``.
@@ -41,34 +42,60 @@ def largest_deflection(at_strike: np.ndarray, along: np.ndarray, stiffness: np.n
     return float(np.max(np.abs((at_strike / stiffness) @ along)))
 
 
-class Pluck(Exciter):
-    """A pluck, from a model's ``pluck_displacement_mm`` (and ``release_time_ms`` where it has one)."""
+@dataclass(frozen=True)
+class PluckHold:
+    """The pluck as a resonator solves it: its point held out ``displacement_m`` (m), then let go."""
+
+    displacement_m: float
+
+    def force_n(self, drive: DrivePoint) -> float:
+        """The force (N) that holds the point out: the displacement over the compliance, capped so
+        no point moves more than ``PLUCK_REACH`` x the displacement; 0 where nothing gives."""
+        give = max(drive.compliance_m_n, drive.reach_m_n / PLUCK_REACH)
+        force = self.displacement_m / give if give > 0.0 else 0.0
+        return force if math.isfinite(force) else 0.0  # a give so small it underflows: nothing moves measurably
+
+
+class PluckSettings(Protocol):
+    """What a pluck reads from a model's record: its rows (:meth:`Pluck.parameters`)."""
+
+    @property
+    def pluck_displacement_mm(self) -> float: ...
+
+
+class ReleasedPluckSettings(PluckSettings, Protocol):
+    """... and, for the in-advance form, the release row (``Pluck.parameters(release=True)``)."""
+
+    @property
+    def release_time_ms(self) -> float: ...
+
+
+class Pluck(Exciter[PluckSettings]):
+    """A pluck, from a model's ``pluck_displacement_mm`` (and ``release_time_ms`` for the
+    in-advance form)."""
 
     name = "pluck"
+    summary = "a release"
     in_advance = True  # the force released over release_time_ms (banded, all-pass)
-    coupled = True  # the bar held out, then let go with the step (fd: hold_force_n)
-
-    def __init__(self, parameters: Any, *, release: bool = True):
-        self.displacement_m = parameters.pluck_displacement_mm * 1e-3
-        self.release_s = parameters.release_time_ms * 1e-3 if release else 0.0
+    coupled = True  # the bar held out, then let go with the step (fd)
 
     @staticmethod
     def parameters(*, release: bool = True) -> list[Parameter]:
+        """Its rows; ``release=False`` for a model that only takes the coupled form (the bar let go
+        at once, its step being the release)."""
         rows = [Parameter("pluck_displacement_mm", "mm", 0.01, 20.0, 1.0, PLUCK_DOC, scale="log", when=PLUCKED)]
         if release:
             rows.append(Parameter("release_time_ms", "ms", 0.05, 20.0, 0.5, "how long a pluck's release takes",
                                   scale="log", when=PLUCKED))
         return rows
 
-    def hold_force_n(self, point: DrivePoint) -> float:
-        """The force (N) that holds the point out: the displacement over the compliance, capped so
-        no point moves more than ``PLUCK_REACH`` x the displacement; 0 where nothing gives."""
-        give = max(point.compliance_m_n, point.reach_m_n / PLUCK_REACH)
-        force = self.displacement_m / give if give > 0.0 else 0.0
-        return force if math.isfinite(force) else 0.0  # a give so small it underflows: nothing moves measurably
+    def coupling(self) -> PluckHold:
+        """The point held out, for a resonator that lets it go with its own step: the coupled form."""
+        return PluckHold(self.settings.pluck_displacement_mm * 1e-3)
 
-    def force(self, point: DrivePoint, sample_rate: float) -> tuple[np.ndarray, float]:
-        """The force change of letting go (N per sample, over the release), and the change that
-        stays after it: the in-advance form (needs ``release``)."""
-        held = -self.hold_force_n(point)
-        return release_ramp(held, self.release_s, sample_rate), held
+    def force(self, drive: DrivePoint) -> Force:
+        """The force change of letting go (N per sample, over the release along a raised cosine),
+        and the change that stays after it: the in-advance form (it reads ``release_time_ms``)."""
+        held = -self.coupling().force_n(drive)
+        release_s = cast(ReleasedPluckSettings, self.settings).release_time_ms * 1e-3
+        return Force(release_ramp(held, release_s, self.sample_rate), held)

@@ -5,19 +5,18 @@ the mallet is a mass on a contact spring ``F = k d^p``; its hardness maps to a c
 from a soft yarn mallet (10 ms at 1 m/s) to hard plastic (0.2 ms).
 
 Two forms: :meth:`Strike.force`, the pulse of the mallet bouncing off a rigid bar (banded,
-all-pass), and :meth:`Strike.contact`, the mallet itself, solved with the bar's step (fd).
+all-pass), and :meth:`Strike.coupling`, the mallet itself (a :class:`MalletContact`), solved
+with the bar's step (fd).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
-
-import numpy as np
+from typing import Protocol
 
 from ..dsp.mallet import HERTZ_EXPONENT, hertz_stiffness, mallet_pulse
 from ..parameters import Parameter
-from .base import Exciter
+from .base import DrivePoint, Exciter, Force
 
 SOFTEST_CONTACT_S = 0.010  # mallet_hardness 0: a soft yarn mallet at 1 m/s
 HARDEST_CONTACT_S = 0.0002  # mallet_hardness 1: a hard plastic mallet at 1 m/s
@@ -40,17 +39,26 @@ class MalletContact:
     velocity_m_s: float
 
 
-class Strike(Exciter):
+class StrikeSettings(Protocol):
+    """What a strike reads from a model's record: its rows (:meth:`Strike.parameters`)."""
+
+    @property
+    def mallet_hardness(self) -> float: ...
+
+    @property
+    def mallet_velocity_m_s(self) -> float: ...
+
+    @property
+    def mallet_mass_kg(self) -> float: ...
+
+
+class Strike(Exciter[StrikeSettings]):
     """A mallet strike, from a model's ``mallet_*`` parameters."""
 
     name = "strike"
+    summary = "a mallet"
     in_advance = True  # the mallet's pulse off a rigid bar (banded, all-pass)
     coupled = True  # the mallet itself, solved with the bar's step (fd)
-
-    def __init__(self, parameters: Any):
-        self.mass_kg = parameters.mallet_mass_kg
-        self.velocity_m_s = parameters.mallet_velocity_m_s
-        self.stiffness = hertz_stiffness(mallet_contact_s(parameters.mallet_hardness), self.mass_kg)
 
     @staticmethod
     def parameters() -> list[Parameter]:
@@ -63,11 +71,15 @@ class Strike(Exciter):
                       when=STRUCK),
         ]
 
-    def force(self, sample_rate: float) -> np.ndarray:
-        """The force (N per sample) of the mallet bouncing off: the uncoupled form."""
-        return mallet_pulse(mass_kg=self.mass_kg, velocity_m_s=self.velocity_m_s, stiffness=self.stiffness,
-                            sample_rate=sample_rate)
-
-    def contact(self) -> MalletContact:
+    def coupling(self) -> MalletContact:
         """The mallet for a resonator that solves the contact with its own step: the coupled form."""
-        return MalletContact(self.mass_kg, self.stiffness, HERTZ_EXPONENT, self.velocity_m_s)
+        s = self.settings
+        stiffness = hertz_stiffness(mallet_contact_s(s.mallet_hardness), s.mallet_mass_kg)
+        return MalletContact(s.mallet_mass_kg, stiffness, HERTZ_EXPONENT, s.mallet_velocity_m_s)
+
+    def force(self, drive: DrivePoint) -> Force:
+        """The force (N per sample) of the mallet bouncing off a rigid bar, nothing held after it:
+        the in-advance form (``drive`` is not read: a rigid bar does not give)."""
+        mallet = self.coupling()
+        return Force(mallet_pulse(mass_kg=mallet.mass_kg, velocity_m_s=mallet.velocity_m_s,
+                                  stiffness=mallet.stiffness, sample_rate=self.sample_rate, p=mallet.exponent), 0.0)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -21,6 +21,9 @@ from ..errors import ModelError, ParameterError
 from ..checks import check_whole, show_value
 from ..parameters import ParameterTable
 from .rendering import MAX_BLOCK_SAMPLES, check_block_size, check_dtype, check_sample_rate, check_seed
+
+if TYPE_CHECKING:  # (a model without exciters, the twang, does not import them)
+    from ..exciters import Exciter
 
 
 @dataclass(frozen=True)
@@ -58,8 +61,8 @@ class Voice:
     What a voice can do is declared on its class, not guessed:
     """
 
-    model: ClassVar[Any] = None
-    """The :class:`Model` this voice belongs to (set by the model)."""
+    model: ClassVar[Model]
+    """The :class:`Model` this voice belongs to (set by the model's first instance)."""
     restarts_on_trigger: ClassVar[bool] = False
     """A trigger restarts the note (phasors back to 0, filters emptied) instead of adding to
     what rings: :class:`~barsynth.models.crossfade.CrossfadingVoice` fades the old note out."""
@@ -187,19 +190,38 @@ class Model:
     """A synthesis model: its parameter table, its presets, its voices and offline renders.
 
     A model names itself (``name``, ``summary``), its table (``table``), its voice class
-    (``voice_class``) and implements :meth:`describe`. ``reports_reference_errors``
-    declares :meth:`errors_cents` (each mode's error against a reference solution).
+    (``voice_class``) and implements :meth:`describe`. What it offers is declared on its
+    class: ``exciters`` (the exciters a trigger can use, :mod:`barsynth.exciters`, in the order
+    of its ``excitation`` choices; none for a model that is its own excitation) and
+    ``reports_reference_errors`` (it implements :meth:`errors_cents`: each mode's error against
+    a reference solution).
     """
 
     name: ClassVar[str] = ""
     summary: ClassVar[str] = ""
     table: ClassVar[ParameterTable]
     voice_class: ClassVar[type[Voice]]
+    exciters: ClassVar[tuple[type[Exciter], ...]] = ()
+    """The exciters its voices take, each by its ``excitation`` name (checked against the table)."""
     reports_reference_errors: ClassVar[bool] = False
 
     def __init__(self) -> None:
-        if self.voice_class.model is None:  # the first instance (the registry's MODEL) is the voices' model
+        self._check_exciters()
+        if "model" not in vars(self.voice_class):  # the first instance (the registry's MODEL) is the voices' model
             self.voice_class.model = self
+
+    def _check_exciters(self) -> None:
+        """The table's ``excitation`` choices are the names of ``exciters``, each one of barsynth's."""
+        names = tuple(e.name for e in self.exciters)
+        choices = self.table["excitation"].choices if "excitation" in self.table else ()
+        if choices != names:
+            raise TypeError(f"model {self.name}: its exciters {names} must be its table's excitation choices {choices}")
+        if self.exciters:
+            from ..exciters import EXCITERS
+
+            strangers = [e.__name__ for e in self.exciters if EXCITERS.get(e.name) is not e]
+            if strangers:
+                raise TypeError(f"model {self.name}: exciters {strangers} are not in barsynth.exciters.EXCITERS")
 
     @property
     def params(self) -> ParameterTable:

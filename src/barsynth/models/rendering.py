@@ -13,6 +13,7 @@ import numpy as np
 
 from ..checks import check_number, check_whole, show_value
 from ..errors import ParameterError, SamplesError
+from ..parameters import table_of
 
 MIN_SAMPLE_RATE = 8_000.0
 MAX_SAMPLE_RATE = 384_000.0
@@ -282,7 +283,7 @@ def _short(value: Any) -> str:
 def settings_text(parameters: Any) -> str:
     """``model fd with bc=clamped-free, excitation=pluck, ...``: a model's resolved parameters as one
     short line (the values that differ from the defaults, each shortened; at most a few of them)."""
-    table = getattr(type(parameters), "_table", None)
+    table = table_of(parameters)
     if table is None:
         return "the model"
     changed = [(p.name, getattr(parameters, p.name)) for p in table

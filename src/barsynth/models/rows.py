@@ -6,9 +6,12 @@ own; names, units, ranges and docs stay the same in every model that has them.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..parameters import CHOICE, Parameter, Sets
+
+if TYPE_CHECKING:
+    from ..exciters import Exciter
 
 
 def bar_size_parameters(note: str = "", when: Any = ()) -> list[Parameter]:
@@ -23,6 +26,15 @@ def bar_size_parameters(note: str = "", when: Any = ()) -> list[Parameter]:
                   when=when),
         Parameter("width_m", "m", 0.002, 0.5, 0.04, f"{note}width (sets the mass)", scale="log", when=when),
     ]
+
+
+def excitation_parameter(exciters: tuple[type[Exciter], ...]) -> Parameter:
+    """``excitation``: which of a model's ``exciters`` a trigger uses (the first by default), in
+    their order, with their summaries as its doc."""
+    words = [f"{e.name} ({e.summary})" for e in exciters]
+    said = words[0] if len(words) == 1 else ", ".join(words[:-1]) + " or " + words[-1]
+    return Parameter("excitation", "", None, None, exciters[0].name, f"what a trigger does: {said}",
+                     kind=CHOICE, choices=tuple(e.name for e in exciters))
 
 
 def level_parameter() -> Parameter:

@@ -44,7 +44,7 @@ loop's frequencies and decays are what the fit protects first.
 
 The package: ``table`` (parameters), ``design`` (parameters -> filters and their report,
 from ``targets``, ``plan``, ``loss``, ``fitting`` and ``injection``), ``kernel`` (numba),
-``voice`` (the voice and the model).
+``voice`` (the voice), ``model`` (the model).
 
 Examples
 --------
@@ -61,7 +61,8 @@ Examples
 from .design import AllpassDesign, Filter, ModeFit, allpass_design, design_for
 from .injection import response
 from .table import BOUNDARY_CONDITIONS, TABLE, AllpassParams
-from .voice import MODEL, AllpassModel, AllpassVoice
+from .model import MODEL, AllpassModel
+from .voice import AllpassVoice
 
 ALLPASS_TABLE = TABLE
 

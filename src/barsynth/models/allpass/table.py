@@ -11,8 +11,12 @@ from dataclasses import dataclass
 
 from ...exciters import STRUCK_OR_PLUCKED, Pluck, Strike
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
-from ..rows import bar_size_parameters, level_parameter
+from ..rows import bar_size_parameters, excitation_parameter, level_parameter
 from ...physics.boundary import BOUNDARY_CONDITIONS
+
+
+ALLPASS_EXCITERS = (Strike, Pluck)
+"""The exciters it offers, in the order of its ``excitation`` choices (the model's ``exciters``)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -51,9 +55,7 @@ TABLE = ParameterTable(
                   "fewer); more fits more modes, closer", kind=INT),
         Parameter("q", "", 3.0, 10000.0, 300.0,
                   "quality factor of every mode: T60 = Q ln(1000) / (pi f)", scale="log"),
-        Parameter("excitation", "", None, None, "strike",
-                  "what a trigger does: strike (a mallet) or pluck (a release)",
-                  kind=CHOICE, choices=("strike", "pluck")),
+        excitation_parameter(ALLPASS_EXCITERS),
         Parameter("strike_position", "", 0.0, 1.0, 0.1, "where it is struck or plucked: fraction of the length",
                   when=STRUCK_OR_PLUCKED),
         Parameter("pickup_position", "", 0.0, 1.0, 0.0, "where its velocity is picked up: fraction of the length"),

@@ -1,30 +1,34 @@
-"""The all-pass waveguide bar's voice and model: a strike or a pluck into the designed loop.
+"""The all-pass waveguide bar's voice: a strike or a pluck into the designed loop.
 
 The voice builds the waveguide for its parameters (:func:`.design.design_for`), drives it with
-the force of its exciter (:class:`~barsynth.exciters.Strike` or
-:class:`~barsynth.exciters.Pluck`, uncoupled: a force known in advance, played through a
-:class:`~barsynth.exciters.ForceQueue`) and reads the pick-up (m/s, times ``level_db``: an
+the force of its exciter (the model's: :class:`~barsynth.exciters.Strike` or
+:class:`~barsynth.exciters.Pluck`, in their in-advance form: a force known in advance, played
+through a :class:`~barsynth.exciters.ForceQueue`) and reads the pick-up (m/s, times ``level_db``: an
 output gain on everything the voice plays, which glides to a new level over
 :data:`~barsynth.dsp.smoothing.LEVEL_GLIDE_S`). A new strike adds to what rings. A change of
 parameters that keeps the waveguide's shape (the level, the mallet) carries its state over; one
 that rebuilds it leaves the old waveguide ringing beside the new one (with the force it was
 given) for ``RETIRE_T60S`` of its longest T60, then fading out over ``FADE_S``.
+
+That fade is a table of exact gains ``d / fade`` read by the samples ``d`` left, not a
+:mod:`barsynth.dsp.smoothing` ramp: a linear ramp steps by adding ``-1 / fade`` (its gains drift
+from ``d / fade`` by rounding), and a retired waveguide is read by its end, not stepped from
+now; its length in whole samples is smoothing's (:func:`~barsynth.dsp.smoothing.ramp_steps`).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from functools import cached_property
 
 import numpy as np
 
 from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, scale, start_ramp
-from ...exciters import POSITIONS_ALONG, DrivePoint, ForceQueue, Pluck, Strike, largest_deflection
-from ..base import Mode, Model, Voice
-from ..rendering import check_sample_rate
+from ...exciters import POSITIONS_ALONG, ExciterSet, ForceQueue, largest_deflection
+from ..base import Voice
 from . import kernel as K
 from .design import AllpassDesign, design_for
-from .table import TABLE, AllpassParams
+from .table import AllpassParams
 
 FADE_S = 0.010  # a replaced waveguide that has rung long enough fades out over this time
 MAX_RETIRED = 3  # replaced waveguides still ringing at once (beyond that the oldest fades out)
@@ -41,6 +45,45 @@ to a point that still moves."""
 def _reckoned(position: float) -> float:
     """The strike point for a pluck's force: at least ``NEAREST_END`` from either end."""
     return min(max(position, NEAREST_END), 1.0 - NEAREST_END)
+
+
+class _StrikePoint:
+    """The bar at the strike point as an exciter sees it (a
+    :class:`~barsynth.exciters.DrivePoint`), from the waveguide's fitted modes: worked out when
+    first read (a pluck reads it; a strike does not), then kept for this waveguide."""
+
+    def __init__(self, p: AllpassParams, design: AllpassDesign):
+        self._p, self._modes = p, [m for m in design.modes if m.fitted]
+
+    @cached_property
+    def compliance_m_n(self) -> float:
+        """Static compliance of the bar at the strike point (m/N), from its fitted modes."""
+        from ...physics import mode_shape
+
+        p, modes = self._p, self._modes
+        mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
+        return sum(float(mode_shape(p.bc, m.number, _reckoned(p.strike_position))) ** 2
+                   / (mass * (2.0 * math.pi * m.physics_hz) ** 2) for m in modes)
+
+    @cached_property
+    def reach_m_n(self) -> float:
+        """The largest static deflection per newton at the strike point (m/N), of the real bar and of
+        the waveguide's own (travelling-wave shapes: its clamped ends move), whichever is larger:
+        a pluck moves neither more than ``PLUCK_REACH`` times its displacement."""
+        from ...physics import mode_shape
+        from ...physics.modes import travelling_wave_shape
+
+        p, modes = self._p, self._modes
+        if not modes:
+            return 0.0
+        mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
+        stiffness = np.array([mass * (2.0 * math.pi * m.physics_hz) ** 2 for m in modes])
+        reach = 0.0
+        for shape in (mode_shape, travelling_wave_shape):
+            at = np.array([float(shape(p.bc, m.number, _reckoned(p.strike_position))) for m in modes])
+            along = np.array([shape(p.bc, m.number, POSITIONS_ALONG) for m in modes])
+            reach = max(reach, largest_deflection(at, along, stiffness))
+        return reach
 
 
 class _Engine:
@@ -142,12 +185,14 @@ class AllpassVoice(Voice):
 
     def _prepare(self) -> None:
         self._engine = self._build()
+        self._strike_point = _StrikePoint(self._params, self._engine.design)
 
     def _reset(self) -> None:
         self._engine.clear()
+        self._exciters = ExciterSet(self.model.exciters, self._params, self.sample_rate)
         self._retired: list[_Retired] = []
         self._force = ForceQueue()
-        self._fade = max(1, int(round(FADE_S * self.sample_rate)))
+        self._fade = ramp_steps(FADE_S, self.sample_rate)
         self._fade_gains = np.arange(self._fade + 1) / self._fade
         self._part = np.empty(self.max_block)
         self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
@@ -156,7 +201,7 @@ class AllpassVoice(Voice):
     def _update(self, old: AllpassParams) -> None:
         """What rings keeps ringing: the same shape carries on with the new coefficients; a new
         shape retires the old waveguide (new strikes go to the new one). A new level glides
-        there over ``LEVEL_GLIDE_S``."""
+        there over ``LEVEL_GLIDE_S``; the exciters read the new settings."""
         engine = self._build()
         level = self._level_gain()
         if level != self._level[TARGET]:
@@ -167,6 +212,8 @@ class AllpassVoice(Voice):
             self._retire(self._engine)
             self._force = ForceQueue()
         self._engine = engine
+        self._strike_point = _StrikePoint(self._params, engine.design)
+        self._exciters.update(self._params)
 
     def _retire(self, engine: _Engine) -> None:
         longest = max((m.model_t60_s for m in engine.design.modes if m.fitted), default=0.0)
@@ -176,40 +223,9 @@ class AllpassVoice(Voice):
             gone.left = min(gone.left, gone.fade)
 
     def trigger(self) -> None:
-        """Strike or pluck now, on top of whatever still rings."""
-        p = self._params
-        if p.excitation == "strike":
-            self._force.add(Strike(p).force(self.sample_rate))
-        else:  # pluck: the force that holds the strike point out, then let go
-            self._force.add(*Pluck(p).force(DrivePoint(self._compliance(), self._reach()), self.sample_rate))
-
-    def _compliance(self) -> float:
-        """Static compliance of the bar at the strike point (m/N), from its fitted modes."""
-        from ...physics import mode_shape
-
-        p, modes = self._params, [m for m in self.design.modes if m.fitted]
-        mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
-        return sum(float(mode_shape(p.bc, m.number, _reckoned(p.strike_position))) ** 2
-                   / (mass * (2.0 * math.pi * m.physics_hz) ** 2) for m in modes)
-
-    def _reach(self) -> float:
-        """The largest static deflection per newton at the strike point (m/N), of the real bar and of
-        the waveguide's own (travelling-wave shapes: its clamped ends move), whichever is larger:
-        a pluck moves neither more than ``PLUCK_REACH`` times its displacement."""
-        from ...physics import mode_shape
-        from ...physics.modes import travelling_wave_shape
-
-        p, modes = self._params, [m for m in self.design.modes if m.fitted]
-        if not modes:
-            return 0.0
-        mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
-        stiffness = np.array([mass * (2.0 * math.pi * m.physics_hz) ** 2 for m in modes])
-        reach = 0.0
-        for shape in (mode_shape, travelling_wave_shape):
-            at = np.array([float(shape(p.bc, m.number, _reckoned(p.strike_position))) for m in modes])
-            along = np.array([shape(p.bc, m.number, POSITIONS_ALONG) for m in modes])
-            reach = max(reach, largest_deflection(at, along, stiffness))
-        return reach
+        """Strike or pluck now, on top of whatever still rings: every exciter of the model gives
+        its force in advance."""
+        self._force.add(*self._exciters[self._params.excitation].force(self._strike_point))
 
     def _render(self, out: np.ndarray) -> None:
         """Velocity at the pick-up (m/s) of the waveguide and of the retired ones, times the level
@@ -219,26 +235,3 @@ class AllpassVoice(Voice):
             self._retired = [r for r in self._retired if r.add_to(out, self._part, self._fade_gains)]
         scale(out, self._level, MULTIPLICATIVE)
 
-
-class AllpassModel(Model):
-    """The all-pass waveguide bar as a barsynth model (see :mod:`barsynth.models.allpass`)."""
-
-    name = "allpass"
-    summary = ("all-pass (generalised) waveguide bar (Van Duyne & Smith 1994): travelling bending waves "
-               "through fitted dispersion filters, struck or plucked; a measured comparison")
-    table = TABLE
-    voice_class = AllpassVoice
-
-    def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:
-        """The resonances the waveguide will play, from its own filters: frequency, gain
-        (velocity per unit impulse x mass: for a real bar the product of the two mode
-        shapes) and T60. Groups: ``fitted`` (in the fitted band), ``unfitted`` (above it,
-        where the filters are not fitted), ``spurious`` (the loop's own resonances below the
-        first mode, which the strike and pick-up filters keep far down)."""
-        design = design_for(self.resolve(parameters), check_sample_rate(sample_rate))
-        modes = [Mode("fitted" if m.fitted else "unfitted", m.model_hz, m.gain, m.model_t60_s)
-                 for m in design.modes]
-        return modes + [Mode("spurious", f, g, t60) for f, g, t60 in design.spurious]
-
-
-MODEL = AllpassModel()

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ParameterError
-from ...exciters import POSITIONS_ALONG, DrivePoint, largest_deflection
+from ...exciters import POSITIONS_ALONG, StaticPoint, largest_deflection
 from ...physics import bar_frequencies, mode_shape
 from .kernel import LOOP
 from .table import MAX_MODES, MIN_Q, BandedParams
@@ -210,7 +210,7 @@ class BankDesign:
 
     loops: np.ndarray
     modes: np.ndarray
-    strike_point: DrivePoint
+    strike_point: StaticPoint
     level: float
 
     @property
@@ -250,6 +250,6 @@ def design_bank(p: BandedParams, sample_rate: float) -> BankDesign:
     loops["out"] = pickup
     stiffness = mass * (2.0 * math.pi * freqs[modes]) ** 2  # N/m per mode
     along = mode_shapes(p, count, POSITIONS_ALONG)[modes]
-    strike_point = DrivePoint(compliance_m_n=float(np.sum(strike ** 2 / stiffness)),
+    strike_point = StaticPoint(compliance_m_n=float(np.sum(strike ** 2 / stiffness)),
                               reach_m_n=largest_deflection(strike, along, stiffness))
     return BankDesign(loops, modes, strike_point, 10.0 ** (p.level_db / 20.0))

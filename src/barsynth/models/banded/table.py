@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from ...exciters import STRUCK_OR_PLUCKED, Bow, Pluck, Strike
 from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
-from ..rows import bar_size_parameters, level_parameter
+from ..rows import bar_size_parameters, excitation_parameter, level_parameter
 
 MAX_MODES = 24
 """The most modes (loops) an object may have."""
@@ -19,6 +19,10 @@ MIN_Q = 3.0
 
 PHYSICS = {"tuning": ("physics",)}
 RATIOS = {"tuning": ("ratios",)}
+
+
+BANDED_EXCITERS = (Strike, Bow, Pluck)
+"""The exciters it offers, in the order of its ``excitation`` choices (the model's ``exciters``)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -78,9 +82,7 @@ BANDED_TABLE = ParameterTable(
                   "(cos(n 2 pi x), n = 2, 3, ... around a glass or bowl)", kind=CHOICE, choices=("bar", "ring"),
                   when=RATIOS),
         Parameter("mass_kg", "kg", 0.001, 100.0, 0.3, "tuning = ratios: the object's mass", scale="log", when=RATIOS),
-        Parameter("excitation", "", None, None, "strike",
-                  "what a trigger does: strike (a mallet), bow (a bow stroke) or pluck (a release)",
-                  kind=CHOICE, choices=("strike", "bow", "pluck")),
+        excitation_parameter(BANDED_EXCITERS),
         Parameter("strike_position", "", 0.0, 1.0, 0.1,
                   "where it is struck or plucked: fraction of the length (bar) or of the circumference (ring)",
                   when=STRUCK_OR_PLUCKED),

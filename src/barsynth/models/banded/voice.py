@@ -5,13 +5,14 @@ percussion instruments", Proc. ICMC 1999 (barsynth spec 3.1); the mallet after A
 and V. Doutaut, JASA 101 (1997).
 
 The resonator is :mod:`.design` (modes and loops) run by :mod:`.kernel`; the exciters are
-:mod:`barsynth.exciters`': a strike's and a pluck's forces are known in advance (uncoupled:
-they are added to a :class:`~barsynth.exciters.ForceQueue` the kernel plays out), a bow's
-friction depends on the bar's velocity under it (coupled: the bowed kernel solves it each
-sample from the :class:`~barsynth.exciters.Bow`'s lines). A new strike, stroke or pluck adds
-to whatever still rings: nothing is cleared. The output is the object's velocity at the
-pick-up point (m/s) times ``level_db`` (an output gain that glides to a new level over
-:data:`~barsynth.dsp.smoothing.LEVEL_GLIDE_S`).
+the model's (:attr:`BandedModel.exciters <barsynth.models.banded.BandedModel.exciters>`), one
+of each kept by the voice: one that offers a force known in advance (a strike, a pluck) adds it
+to a :class:`~barsynth.exciters.ForceQueue` the kernel plays out; the bow, coupled (its
+friction depends on the bar's velocity under it), starts a stroke whose lines
+(:meth:`Bow.coupling <barsynth.exciters.Bow.coupling>`) the bowed kernel solves each sample.
+A new strike, stroke or pluck adds to whatever still rings: nothing is cleared. The output is
+the object's velocity at the pick-up point (m/s) times ``level_db`` (an output gain that
+glides to a new level over :data:`~barsynth.dsp.smoothing.LEVEL_GLIDE_S`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
-from ...exciters import Bow, ForceQueue, Pluck, Strike
+from ...dsp.bow_stroke import BowControls
+from ...exciters import Bow, ExciterSet, ForceQueue
 from ..base import Voice
 from . import kernel as K
 from .design import BankDesign, design_bank
@@ -45,7 +47,8 @@ class BandedVoice(Voice):
     _bank: BankDesign
     _state: K.LoopState
     _forces: ForceQueue
-    _bow: Bow
+    _exciters: ExciterSet
+    _stroke: BowControls
     _level: np.ndarray
 
     def _prepare(self) -> None:
@@ -56,13 +59,14 @@ class BandedVoice(Voice):
         """Silence: every loop emptied, no force pending, the bow off the bar; the level as it is set."""
         self._state = K.empty_state(len(self._bank.modes), self._bank.longest_delay)
         self._forces = ForceQueue()
-        self._bow = Bow(self._params, self.sample_rate)
+        self._exciters = ExciterSet(self.model.exciters, self._params, self.sample_rate)
+        self._stroke = self._exciters.of(Bow).coupling()  # the bow's lines: the bowed kernel reads them
         self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
         start_ramp(self._level, MULTIPLICATIVE, self._bank.level, 0)
 
     def _update(self, old: BandedParams) -> None:
         """The loops are redesigned at once; what rings keeps ringing; a new level glides there
-        over ``LEVEL_GLIDE_S``, a new bow setting glides."""
+        over ``LEVEL_GLIDE_S``; the exciters follow (a new bow setting glides)."""
         bank, previous = design_bank(self._params, self.sample_rate), self._bank
         self._bank = bank
         if bank.level != self._level[TARGET]:
@@ -70,33 +74,31 @@ class BandedVoice(Voice):
         if not (np.array_equal(bank.modes, previous.modes)
                 and self._state.buffers.shape[1] >= bank.longest_delay + 2):
             self._state = K.carried_over(self._state, previous.modes, bank.modes, bank.longest_delay)
-        self._bow.update(self._params)
+        self._exciters.update(self._params)
 
     def trigger(self) -> None:
-        """Strike, start a bow stroke, or pluck now, on top of whatever still rings."""
-        p = self._params
-        if p.excitation == "bow":
-            self._bow.start()
-        elif p.excitation == "strike":
-            self._forces.add(Strike(p).force(self.sample_rate), 0.0)
-        else:  # pluck: the force that holds the strike point out, then let go
-            self._forces.add(*Pluck(p).force(self._bank.strike_point, self.sample_rate))
+        """Excite now with the chosen exciter (strike, pluck, bow stroke), on top of whatever still rings."""
+        exciter = self._exciters[self._params.excitation]
+        if exciter.in_advance:  # a strike's pulse, a pluck's release: played out by the kernel
+            self._forces.add(*exciter.force(self._bank.strike_point))
+        else:  # coupled, the bow: the bowed kernel solves its stroke
+            exciter.start()
 
     def release(self) -> None:
         """Stop a bow stroke now: the bow slows to rest, damps the bar, and is lifted.
         (A bow that is not moving, a strike or a pluck is left as it is.)"""
-        self._bow.stop()
+        self._exciters.release()
 
     @property
     def driven_until(self) -> int:
         """The sample index at which the bow is lifted (until another stroke)."""
-        return self._bow.lifted_at
+        return self._exciters.driven_until
 
     def _render(self, out: np.ndarray) -> None:
         """``out.size`` samples of velocity at the pick-up (m/s) times the level. The bowed
         kernel runs exactly while the bow touches; the kernels apply the level in place; nothing
         is allocated."""
-        n, bow, forces = out.size, self._bow, self._forces
+        n, bow, forces = out.size, self._stroke, self._forces
         now = bow.now
         bowed = min(n, max(0, bow.lifted_at - now))
         loops, state = self._bank.loops, self._state

@@ -19,35 +19,12 @@ over 5 ms (:mod:`barsynth.dsp.smoothing`); a ``level_db`` scales the patch's out
 (0 dB = the patch).
 
 The package: :mod:`.table` (parameters), :mod:`.design` (the patch's constants and
-envelopes), :mod:`.kernel` (the samples), :mod:`.voice` (the streaming voice).
+envelopes), :mod:`.kernel` (the samples), :mod:`.voice` (the streaming voice), :mod:`.model`
+(:class:`FarnellModel`, ``MODEL``).
 """
 
-from __future__ import annotations
-
-from typing import Any
-
-from ..base import Mode, Model
-from ..rendering import check_sample_rate
-from .design import patch_modes
+from .model import MODEL, FarnellModel
 from .table import FARNELL_TABLE, FarnellParams
 from .voice import SMOOTHING_TIME_S, FarnellVoice
 
 __all__ = ["FARNELL_TABLE", "MODEL", "SMOOTHING_TIME_S", "FarnellModel", "FarnellParams", "FarnellVoice"]
-
-
-class FarnellModel(Model):
-    """Farnell's twang as a barsynth model (see the package docstring)."""
-
-    name = "farnell"
-    summary = "Farnell's ruler twang, Designing Sound 2010 (and, with anchor=true, the paper's anchor)"
-    table = FARNELL_TABLE
-    voice_class = FarnellVoice
-
-    def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:
-        """The modes at rest (after the glide): the drive and clamped partials and the
-        free bands. Gains are the patch's; T60 is that of the band-pass (free) or of
-        the clamped envelope's c^4 fall (reported as the time to -60 dB)."""
-        return patch_modes(self.resolve(parameters), sample_rate=check_sample_rate(sample_rate))
-
-
-MODEL = FarnellModel()

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...errors import ParameterError
-from ...exciters import DrivePoint, Pluck
+from ...exciters import PluckHold, StaticPoint
 from ...physics.grid import BarGrid, bar_grid, grid_eigen, grid_modes, highest_frequency, rigid_mode_count
 from ...physics.profiles import Profile
 from . import kernel as K
@@ -181,27 +181,27 @@ def design(p: FdParams, output_rate: float) -> Design:
 
 
 # -- the pluck -----------------------------------------------------------------------------
-def plucked_shape(p: FdParams, grid: BarGrid) -> np.ndarray:
-    """The bar held out ``pluck_displacement_mm`` at the strike point by a point force (rigid
-    motion left out): the static deflection under the force :meth:`~barsynth.exciters.Pluck.hold_force_n`
-    gives, so near a clamped or pinned end no point is held out more than ``PLUCK_REACH`` times
-    the displacement. A fixed point: no pluck (zeros)."""
+def plucked_shape(hold: PluckHold, grid: BarGrid, position: float) -> np.ndarray:
+    """The bar held out ``hold.displacement_m`` at ``position`` (fraction of the length) by a
+    point force (rigid motion left out): the static deflection under the force
+    :meth:`~barsynth.exciters.PluckHold.force_n` gives (the pluck's coupled form,
+    :meth:`~barsynth.exciters.Pluck.coupling`), so near a clamped or pinned end no point is held
+    out more than ``PLUCK_REACH`` times the displacement. A fixed point: no pluck (zeros)."""
     from scipy.linalg import eigh
 
     values, vectors = eigh(grid.stiffness, np.diag(grid.mass))
     elastic = slice(rigid_mode_count(grid.bc), None)
     values, vectors = values[elastic], vectors[:, elastic]
-    force_at = point_vector(grid, p.strike_position)  # (the point vector is also the unit force vector)
+    force_at = point_vector(grid, position)  # (the point vector is also the unit force vector)
     shape = vectors @ ((vectors.T @ force_at) / values)  # the deflection under a unit force (m/N)
     largest = float(np.max(np.abs(shape))) if shape.size else 0.0
     there = float(np.dot(force_at, shape))
-    pluck = Pluck(p, release=False)  # the bar is let go at once, with the step
     if there > np.finfo(float).tiny:
-        return shape * pluck.hold_force_n(DrivePoint(there, largest))
+        return shape * hold.force_n(StaticPoint(there, largest))
     if not largest > 0.0:
         return shape * 0.0
     unit = shape / largest  # near a fixed node the deflection can be subnormal: scaled first
-    return unit * pluck.hold_force_n(DrivePoint(float(np.dot(force_at, unit)), 1.0))
+    return unit * hold.force_n(StaticPoint(float(np.dot(force_at, unit)), 1.0))
 
 
 # -- what the scheme rings -----------------------------------------------------------------

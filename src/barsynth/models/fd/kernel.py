@@ -75,7 +75,7 @@ MALLET_STATE = np.dtype([("z_m", np.float64), ("z_prev_m", np.float64), ("touchi
 
 
 class MalletPoint(NamedTuple):
-    """A Hertzian mallet (:meth:`barsynth.exciters.Strike.contact`) at its point on the grid."""
+    """A Hertzian mallet (:meth:`barsynth.exciters.Strike.coupling`) at its point on the grid."""
 
     at: np.ndarray
     """The point's interpolation vector (padded): the bar's displacement there is ``at . u``."""

@@ -8,9 +8,13 @@ from ...exciters import BOWED, STRUCK_OR_PLUCKED, Bow, Pluck, Strike
 from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
 from ...physics.boundary import BOUNDARY_CONDITIONS
 from ...physics.profiles import PROFILE_KINDS, THINNEST
-from ..rows import bar_size_parameters, level_parameter
+from ..rows import bar_size_parameters, excitation_parameter, level_parameter
 
 UNDERCUT = {"profile": ("parabolic", "circular")}
+
+
+FD_EXCITERS = (Strike, Bow, Pluck)
+"""The exciters it offers, in the order of its ``excitation`` choices (the model's ``exciters``)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -81,9 +85,7 @@ FD_TABLE = ParameterTable(
                   scale="log"),
         Parameter("sigma1_m2_s", "m^2/s", 0.0, 0.1, 0.002,
                   "loss growing with frequency: adds sigma1 x wavenumber^2 to a mode's decay rate"),
-        Parameter("excitation", "", None, None, "strike",
-                  "what a trigger does: strike (a mallet), bow (a bow stroke) or pluck (a release)",
-                  kind=CHOICE, choices=("strike", "bow", "pluck")),
+        excitation_parameter(FD_EXCITERS),
         Parameter("bow_solver", "", None, None, "newton",
                   "the bow's friction: newton (solved with each step: stick and slip) or explicit (from the "
                   "step before: a forced oscillation)", kind=CHOICE, choices=("newton", "explicit"), when=BOWED),

@@ -1,17 +1,20 @@
 """The finite-difference bar's voice: the scheme of :mod:`.design` stepped by :mod:`.kernel`.
 
-The exciters are coupled (solved with each step): the mallet of
-:meth:`barsynth.exciters.Strike.contact` and the friction of a :class:`barsynth.exciters.Bow`;
-a pluck sets the bar to its static deflection under the force :class:`barsynth.exciters.Pluck`
-gives, and lets go.
+The exciters (the model's, one of each kept by the voice) are taken in their coupled forms
+(:meth:`barsynth.exciters.Exciter.coupling`), each solved with the step by a record of its own:
+the mallet (:class:`~barsynth.exciters.MalletContact`) by the kernel's ``MalletPoint``, the
+bow's lines (:class:`~barsynth.dsp.bow_stroke.BowControls`) by its ``BowPoint``; a pluck
+(:class:`~barsynth.exciters.PluckHold`) sets the bar to its static deflection under the
+force that holds the point out, and lets go.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ...dsp.bow_stroke import BowControls
 from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
-from ...exciters import Bow, Strike
+from ...exciters import Bow, ExciterSet, Pluck, Strike
 from ...jitstart import compiled_for
 from ..base import Voice
 from . import kernel as K
@@ -35,14 +38,17 @@ class FdVoice(Voice):
 
     can_release = True
     _params: FdParams
+    _exciters: ExciterSet
+    _stroke: BowControls
 
     def _prepare(self) -> None:
         self._design = design(self._params, self.sample_rate)  # refuses an unstable scheme: nothing changed
 
     def _reset(self) -> None:
         """Silence: the bar at rest, no mallet, the bow lifted."""
+        self._exciters = ExciterSet(self.model.exciters, self._params, self.sample_rate)
+        self._stroke = self._exciters.of(Bow).coupling()  # the bow's lines: the kernel reads them
         self._allocate(self._design)
-        self._bow = Bow(self._params, self.sample_rate)
 
     def _allocate(self, new: Design) -> None:
         """The state for the grid and the output filter of ``new``, at rest."""
@@ -59,7 +65,7 @@ class FdVoice(Voice):
     def _use(self, new: Design) -> None:
         """The kernel's records: the design ``new`` around the present state."""
         p = self._params
-        mallet = Strike(p).contact()
+        mallet = self._exciters.of(Strike).coupling()
         self._design = new
         self._mallet = K.MalletPoint(new.strike.at, new.strike.response, new.strike.gain, mallet.mass_kg,
                                      mallet.stiffness, mallet.exponent, self._mallet_state)
@@ -71,9 +77,10 @@ class FdVoice(Voice):
     def _update(self, old: FdParams) -> None:
         """On the same grid what rings keeps ringing (a new step keeps its velocities) and a new
         level glides there over ``LEVEL_GLIDE_S`` (:mod:`barsynth.dsp.smoothing`); a new grid
-        starts silent. A new bow velocity or force glides there."""
+        starts silent. The exciters follow (a new bow velocity or force glides there)."""
         p = self._params
         new = design(p, self.sample_rate)
+        self._exciters.update(p)  # (before the mallet's record is made anew)
         if new.grid.mass.size != self._design.grid.mass.size:
             self._allocate(new)
         else:
@@ -82,7 +89,6 @@ class FdVoice(Voice):
             if new.level != self._level[TARGET]:
                 _start_ramp(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
             self._use(new)
-        self._bow.update(p)
 
     def _change_step(self, old_steps: int, new_steps: int, taps: np.ndarray) -> None:
         """Keep the bar's and the mallet's velocities through a change of step, and resample the
@@ -103,33 +109,34 @@ class FdVoice(Voice):
         self._output_state["written"] = 0  # the next write goes at 0: the newest value sits at the end
 
     def trigger(self) -> None:
-        """Strike, start a bow stroke, or pluck now, on top of whatever still rings."""
-        p = self._params
-        if p.excitation == "bow":
-            self._bow.start()
-        elif p.excitation == "strike":  # the mallet arrives at the bar as it is now
+        """Excite now with the chosen exciter, on top of whatever still rings: each coupled form
+        meets the bar through its own record."""
+        exciter = self._exciters[self._params.excitation]
+        if isinstance(exciter, Strike):  # the mallet arrives at the bar as it is now
             here = float(np.dot(self._mallet.at, self._bar.u))  # (pads are zero in both)
             self._mallet_state["z_m"] = here
-            self._mallet_state["z_prev_m"] = here - Strike(p).contact().velocity_m_s / self._design.scheme.step_rate
+            self._mallet_state["z_prev_m"] = here - exciter.coupling().velocity_m_s / self._design.scheme.step_rate
             self._mallet_state["touching"] = True
-        else:
-            shape = K.padded(plucked_shape(p, self._design.grid))
+        elif isinstance(exciter, Pluck):  # held out, let go with the next step
+            shape = K.padded(plucked_shape(exciter.coupling(), self._design.grid, self._params.strike_position))
             self._bar.u[:] += shape
             self._bar.u_prev[:] += shape
+        else:  # the bow: a stroke of its lines, which the kernel reads
+            exciter.start()
 
     def release(self) -> None:
         """Stop a bow stroke now: the bow slows to rest, damps the bar, and is lifted.
         (A bow that is not moving, a strike or a pluck is left as it is.)"""
-        self._bow.stop()
+        self._exciters.release()
 
     @property
     def driven_until(self) -> int:
         """The sample index at which the bow is lifted (until another stroke)."""
-        return self._bow.lifted_at
+        return self._exciters.driven_until
 
     def _render(self, out: np.ndarray) -> None:
         """Velocity at the pick-up (m/s) times the level."""
-        bow = self._bow
+        bow = self._stroke
         run = self._run
         if run is None:  # process's dispatcher would type the records at every call (~6 us)
             run = self._run = compiled_for(K.process, out, self._design.scheme, self._bar, self._mallet,
