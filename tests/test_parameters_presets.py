@@ -118,7 +118,7 @@ def test_a_floats_parameter_takes_lists_from_the_cli_toml_and_json():
     assert ratios.validate("") == () and ratios.validate([]) == ()
     for bad, needle in [("1,200", "value 2 = '200' is out of range"), ("1,x", "'x' is not a number"),
                         ([1, 2, 3, 4, 5], "has 5 values"), (3.0, "is not a list"), ([1, True], "True"),
-                        ("1,nan", "value 2 = 'nan' is out of range")]:
+                        ("1,nan", "value 2 = 'nan' is not a finite number")]:
         with pytest.raises(ParameterError, match=needle) as info:
             ratios.validate(bad)
         assert "allowed: a list of up to 4 values, each 0.5 to 100 dimensionless" in str(info.value)

@@ -169,7 +169,7 @@ class Parameter:
             return self._validate_floats(value)
         number = self._to_number(value)
         assert self.minimum is not None and self.maximum is not None
-        if not (math.isfinite(number) and self.minimum <= number <= self.maximum):
+        if not self.minimum <= number <= self.maximum:
             raise self._error(value)
         if self.kind == INT:
             if number != int(number):
@@ -194,28 +194,33 @@ class Parameter:
                                  f"{self.range_text()}")
         out = []
         for position, item in enumerate(items, start=1):
-            number = self._to_number(item)
+            number = self._to_number(item, position)
             assert self.minimum is not None and self.maximum is not None
-            if not (math.isfinite(number) and self.minimum <= number <= self.maximum):
+            if not self.minimum <= number <= self.maximum:
                 raise ParameterError(f"parameter {self.name}: value {position} = {show_value(item)} is out of range; "
                                      f"allowed: {self.range_text()}")
             out.append(number)
         return tuple(out)
 
-    def _to_number(self, value: Any) -> float:
+    def _to_number(self, value: Any, position: int | None = None) -> float:
+        """``value`` (a number, or text holding one) as a finite float, or ParameterError;
+        ``position``: which item of a list it is (for the message)."""
+        which = self.name if position is None else f"{self.name}: value {position}"
         if isinstance(value, bool):
             raise self._error(value)
         try:
-            if isinstance(value, (int, float)):
-                return float(value)
-            return float(str(value).strip())
+            number = float(value) if isinstance(value, (int, float)) else float(str(value).strip())
         except OverflowError:  # an int beyond float range: out of every range
             return math.inf
         except ValueError:
             raise ParameterError(
-                f"parameter {self.name} = {show_value(value)} is not a number; "
-                f"allowed: {self.range_text()}"
+                f"parameter {which} = {show_value(value)} is not a number; allowed: {self.range_text()}"
             ) from None
+        if not math.isfinite(number):
+            raise ParameterError(
+                f"parameter {which} = {show_value(value)} is not a finite number; allowed: {self.range_text()}"
+            )
+        return number
 
     def _error(self, value: Any) -> ParameterError:
         return ParameterError(
