@@ -752,6 +752,36 @@ def test_a_parameter_without_effect_gets_one_warning_and_still_renders(tmp_path)
     assert r.stderr == "barsynth: warning: length_m has no effect unless tuning = physics\n"
 
 
+@pytest.mark.parametrize("model_name,args,warning", [
+    ("twang", ["--set", "vibrato_depth_hz=30"], "vibrato_depth_hz has no effect unless vibrato_rate_hz > 0"),
+    ("twang", ["--set", "short_cantilever_gain=0", "--set", "short_length_ratio=0.5"],
+     "short_length_ratio has no effect unless short_cantilever_gain > 0"),
+    ("banded", ["--set", "mode_count=2", "--set", "mode_t60s_s=1,0.5", "--set", "q=50"],
+     "q has no effect unless tuning = physics and mode_t60s_s has fewer values than mode_count, or tuning = "
+     "ratios and mode_t60s_s has fewer values than mode_ratios"),
+    ("fd", ["--set", "profile=parabolic", "--set", "undercut_width=0.4"],
+     "undercut_width has no effect unless profile = parabolic or circular and undercut_depth > 0"),
+])
+def test_a_parameter_without_effect_under_a_number_gets_one_warning_and_the_same_sound(tmp_path, model_name, args,
+                                                                                      warning):
+    """A row that acts only while a number (or a list's length) says so: one warning line, and the
+    file is the one rendered without that --set."""
+    given, out = tmp_path / "given.wav", tmp_path / "without.wav"
+    r = run("render", model_name, *args, "--duration", "0.3", "-o", str(given))
+    assert r.exit_code == 0 and r.stderr == f"barsynth: warning: {warning}\n"
+    assert run("render", model_name, *args[:-2], "--duration", "0.3", "-o", str(out)).stderr == ""
+    assert given.read_bytes() == out.read_bytes()
+
+
+def test_a_parameter_acting_under_a_number_gets_no_warning(tmp_path):
+    out = tmp_path / "x.wav"
+    for model_name, args in [("twang", ["--set", "vibrato_rate_hz=5", "--set", "vibrato_depth_hz=30"]),
+                             ("banded", ["--set", "mode_count=3", "--set", "mode_t60s_s=1,0.5", "--set", "q=50"]),
+                             ("banded", ["--set", "tuning=ratios", "--set", "mode_t60s_s=1,0.5", "--set", "q=50"])]:
+        r = run("render", model_name, *args, "--duration", "0.2", "-o", str(out))
+        assert r.exit_code == 0 and r.stderr == "", (model_name, args, r.stderr)
+
+
 def test_material_in_params_set_and_materials(tmp_path):
     from barsynth.physics import materials as table
 
