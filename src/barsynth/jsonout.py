@@ -1,6 +1,6 @@
 """Numbers for JSON output: what the CLI and the studio send where JSON has no number (inf, NaN).
 
-Imports nothing but :mod:`math` (and recognises a NumPy value without importing NumPy), so the
+Imports only the standard library (a NumPy value is recognised without importing NumPy), so the
 command line's quick commands stay quick.
 """
 
