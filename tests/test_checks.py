@@ -37,7 +37,7 @@ def test_number_message_names_parameter_value_range_and_unit():
 @pytest.mark.parametrize("bad", [float("nan"), float("inf"), -float("inf")])
 def test_number_rejects_non_finite_even_without_bounds(bad):
     text = message(lambda: check_number("gain_db", bad, "dB"))
-    assert text.startswith(f"parameter gain_db = {bad!r} is out of range; allowed:")
+    assert text.startswith(f"parameter gain_db = {bad!r} is not a finite number; allowed:")
     assert text.endswith("dB values")
 
 
@@ -52,8 +52,22 @@ def test_number_parses_text_only_when_asked():
     text = message(lambda: check_number("sample_rate", "fast", "Hz", minimum=1.0, parse_text=True))
     assert text == "parameter sample_rate = 'fast' is not a number; allowed: >= 1 Hz"
     text = message(lambda: check_number("sample_rate", "nan", "Hz", parse_text=True))
-    assert "is out of range" in text
+    assert text == "parameter sample_rate = 'nan' is not a finite number; allowed: finite Hz values"
     message(lambda: check_number("sample_rate", True, "Hz", parse_text=True))
+
+
+@pytest.mark.parametrize("path,needle", [
+    ("x.mp3", "parameter output = x.mp3 has an unsupported extension; allowed: a name ending in .wav or .flac"),
+    (".wav", "parameter output = .wav has no extension (.wav alone is a hidden file's name); allowed:"),
+    ("dir/.flac", "parameter output = dir/.flac has no extension (.flac alone is a hidden"),
+    ("noext", "parameter output = noext has no extension; allowed: a name ending in .wav or .flac"),
+])
+def test_extension_refusals_say_what_the_name_lacks(path, needle):
+    from barsynth.checks import check_extension
+
+    assert check_extension("a/Take 1.FLAC", "parameter output =", (".wav", ".flac")) == ".flac"
+    assert check_extension(".hidden.wav", "parameter output =", (".wav", ".flac")) == ".wav"
+    assert message(lambda: check_extension(path, "parameter output =", (".wav", ".flac"))).startswith(needle)
 
 
 def test_number_bounds_inclusive_by_default():
@@ -137,7 +151,7 @@ def test_array_reports_the_first_bad_element_with_range_and_unit():
     )
     grid = [[0.5, 0.2], [np.inf, 2.0]]
     text = message(lambda: check_array("x", grid, "m", minimum=0.0, maximum=1.0))
-    assert text.startswith("parameter x = inf is out of range; allowed: 0 to 1 m;")
+    assert text.startswith("parameter x = inf is not a finite number; allowed: 0 to 1 m;")
     assert text.endswith("index (1, 0)")
     text = message(lambda: check_array("t60_s", -3.0, "s", **above))
     assert text == "parameter t60_s = -3.0 is out of range; allowed: > 0 s"
@@ -154,7 +168,7 @@ def test_array_bounds_inclusive_and_exclusive():
 def test_array_rejects_non_finite_without_bounds(bad):
     text = message(lambda: check_array("samples", bad, ""))
     assert text.startswith("parameter samples = ")
-    assert "is out of range; allowed: finite dimensionless values" in text
+    assert "is not a finite number; allowed: finite dimensionless values" in text
 
 
 @pytest.mark.parametrize(

@@ -154,14 +154,79 @@ def test_render_other_formats(tmp_path, suffix, subtype):
     (["--sample-rate", "44100.5"], ["sample_rate", "whole"]),
     (["--seed", "-1"], ["seed"]),
     (["--preset", "nope"], ["nope"]),
+    # barsynth's one line, not click's "Invalid value for ...", and non-finite numbers said as such
+    (["--seed", "abc"], ["parameter seed = 'abc' is not a whole number", "allowed: >= 0"]),
+    (["--seed", "1.5"], ["parameter seed = 1.5 is not a whole number"]),
+    (["--subtype", "PCM_8"], ["parameter subtype = 'PCM_8' is not a known choice",
+                              "allowed: one of PCM_16, PCM_24, FLOAT"]),
+    (["--sample-rate", "abc"], ["parameter sample_rate = 'abc' is not a number", "8000 to 384000 Hz"]),
+    (["--set", "q=nan"], ["parameter q = 'nan' is not a finite number", "allowed: 50 to 800"]),
+    (["--set", "q=inf"], ["parameter q = 'inf' is not a finite number", "allowed: 50 to 800"]),
+    (["--duration", "nan"], ["parameter duration_s = 'nan' is not a finite number", "allowed: auto, or", " s"]),
+    (["--duration", "-inf"], ["parameter duration_s = '-inf' is not a finite number"]),
+    (["--sample-rate", "inf"], ["parameter sample_rate = 'inf' is not a finite number", "Hz"]),
 ])
 def test_render_bad_input_writes_nothing_and_keeps_an_existing_file(tmp_path, args, needles):
     out = tmp_path / "keep.wav"
     out.write_bytes(b"precious")
     r = run("render", "twang", *args, "-o", str(out))
     assert_one_line_error(r, *needles)
+    assert "invalid value" not in r.stderr.lower()
+    if args[-1].endswith(("nan", "inf")):
+        assert "out of range" not in r.stderr
     assert out.read_bytes() == b"precious"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.wav"]
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["-o", ".wav"], ["parameter output = .wav has no extension", "hidden file",
+                      "allowed: a name ending in .wav, .flac or .ogg"]),
+    (["-o", "/dev/null"], ["parameter output = /dev/null is a device", "allowed: a regular file or a new name"]),
+    (["-o", "SOMEDIR"], ["parameter output = SOMEDIR is a folder", "allowed: a regular file or a new name"]),
+    (["--plot", "SOMEDIR", "-o", "x.wav"], ["parameter plot = SOMEDIR is a folder", "allowed: a regular file"]),
+    (["--plot", ".png", "-o", "x.wav"], ["parameter plot = .png has no extension", "allowed: a name ending in .png"]),
+])
+def test_render_names_what_is_wrong_with_an_output_path(tmp_path, monkeypatch, args, needles):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "SOMEDIR").mkdir()
+    r = run("render", "twang", "--duration", "0.1", *args)
+    assert_one_line_error(r, *needles)
+    assert "invalid value" not in r.stderr.lower() and "unsupported" not in r.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["SOMEDIR"] and not any((tmp_path / "SOMEDIR").iterdir())
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["modes", "--material", "steel", "--length", "1", "--thickness", "0.01", "--bc", "nope"],
+     ["parameter bc = 'nope' is not a known choice", "allowed: one of free-free, clamped-free"]),
+    (["modes", "--material", "steel", "--length", "1", "--thickness", "0.01", "--bc", "free-free", "--count", "abc"],
+     ["parameter count = 'abc' is not a whole number", "allowed: 1 to 1000 modes"]),
+    (["modes", "--material", "steel", "--length", "1", "--thickness", "0.01", "--bc", "free-free", "--count", "2.5"],
+     ["parameter count = 2.5 is not a whole number", "allowed: 1 to 1000 modes"]),
+    (["modes", "--material", "steel", "--length", "abc", "--thickness", "0.01", "--bc", "free-free"],
+     ["parameter length_m = 'abc' is not a number", "allowed: > 0 m"]),
+    (["modes", "--material", "steel", "--length", "nan", "--thickness", "0.01", "--bc", "free-free"],
+     ["parameter length_m = 'nan' is not a finite number", "allowed: > 0 m"]),
+    (["analyze", "--max-partials", "abc", "x.wav"], ["parameter max_partials = 'abc' is not a whole number",
+                                                     "allowed: 1 to 500"]),
+    (["bow-map", "banded", "--velocities", "many", "-o", "m.png"],
+     ["parameter velocities = 'many' is not a whole number", "allowed: 2 to 200 values"]),
+    (["bow-map", "banded", "-o", "SOMEDIR"], ["parameter output = SOMEDIR is a folder"]),
+    (["tune-undercut", "--material", "steel", "--length", "0.3", "--thickness", "0.01", "--profile", "wavy"],
+     ["parameter profile = 'wavy' is not a known choice", "allowed: one of parabolic, circular"]),
+    (["tune-undercut", "--material", "steel", "--length", "0.3", "--thickness", "0.01", "--target-ratio", "x"],
+     ["parameter target_ratio = 'x' is not a number", "allowed: >= 1"]),
+    (["studio", "--port", "http"], ["parameter port = 'http' is not a whole number", "allowed: 0 to 65535"]),
+    (["studio", "--port", "70000"], ["parameter port = 70000 is out of range", "allowed: 0 to 65535"]),
+    (["listen", "report", "x.db", "--csv", "afile"], ["parameter csv = afile is a file", "allowed: a folder"]),
+])
+def test_bad_option_values_are_barsynths_one_line_not_clicks(tmp_path, monkeypatch, args, needles):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "SOMEDIR").mkdir()
+    (tmp_path / "afile").write_text("")
+    r = run(*args)
+    assert_one_line_error(r, *needles)
+    assert "invalid value" not in r.stderr.lower()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["SOMEDIR", "afile"]
 
 
 def test_render_bad_paths(tmp_path):
@@ -392,7 +457,7 @@ def test_bow_map_bad_input_writes_nothing(tmp_path, args, needles):
     r = run("bow-map", *args, "-o", str(out))
     assert_one_line_error(r, *needles)
     assert not out.exists()
-    assert_one_line_error(run("bow-map", "banded", "-o", str(tmp_path / "map.jpg")), "must end in .png")
+    assert_one_line_error(run("bow-map", "banded", "-o", str(tmp_path / "map.jpg")), "ending in .png")
 
 
 # -- the finite-difference bar and the undercut tuner ---------------------------------------
@@ -579,6 +644,7 @@ def test_an_interrupted_write_leaves_no_temporary_file(tmp_path):
 def test_progress_shows_on_a_terminal_only(tmp_path, monkeypatch):
     import barsynth.cli as cli
 
+    monkeypatch.setenv("COLUMNS", "80")
     out = tmp_path / "x.wav"
     quiet = run("render", "fd", "--preset", "ruler", "--duration", "0.5", "-o", str(out))
     assert quiet.exit_code == 0 and quiet.stderr == ""  # not a terminal: nothing
@@ -590,8 +656,66 @@ def test_progress_shows_on_a_terminal_only(tmp_path, monkeypatch):
     assert "\rbarsynth: rendering 0.5 of 0.5 s (100 %)\x1b[K" in shown.stderr
     assert shown.stderr.endswith("\r\x1b[K")  # erased when done
     auto = run("render", "fd", "--preset", "ruler", "-o", str(out))
-    assert "(auto: until 90 dB below its peak, at most 60 s, now" in auto.stderr
+    assert " of 90 dB down (auto, at most 60 s)\x1b[K" in auto.stderr and "-0 of" not in auto.stderr
     assert auto.stderr.endswith("\r\x1b[K") and "\n" not in auto.stderr
+    lines = auto.stderr.split("\r")[1:-1]
+    assert lines and all(len(line.removesuffix("\x1b[K")) <= 79 for line in lines)
+
+
+def _drawn(stream_text: str) -> list[str]:
+    """The lines a progress stream drew (between its carriage returns, without the erase)."""
+    return [part.removesuffix("\x1b[K") for part in stream_text.split("\r") if part.removesuffix("\x1b[K")]
+
+
+@pytest.mark.parametrize("columns", [80, 40])
+def test_progress_lines_fit_the_terminal(monkeypatch, columns):
+    """A line as wide as the terminal wraps, and the next \\r redraw leaves its first row behind:
+    every line is at most columns - 1 wide, whatever the render reports."""
+    import io
+
+    from barsynth.cli import _Progress
+
+    monkeypatch.setenv("COLUMNS", str(columns))  # a stream without a terminal of its own: $COLUMNS
+    stream = io.StringIO()
+    progress = _Progress(stream, terminal=True, after_s=0.0)
+    monkeypatch.setattr("barsynth.cli.PROGRESS_EVERY_S", 0.0)
+    for args in [(4.1, None, -81.4), (4.1, None, None), (59.95, None, -0.0), (123.4, 600.0, None),
+                 (0.5, 0.5, None)]:
+        progress(*args)
+    progress.close()
+    drawn = _drawn(stream.getvalue())
+    assert len(drawn) == 5 and all(len(line) <= columns - 1 for line in drawn), drawn
+    assert all(line.startswith("barsynth: rendering ") for line in drawn)
+    if columns == 80:  # whole: what it says
+        assert drawn[0] == "barsynth: rendering 4.1 s, 81 of 90 dB down (auto, at most 60 s)"
+        assert drawn[2] == "barsynth: rendering 60.0 s, 0 of 90 dB down (auto, at most 60 s)"
+        assert drawn[3] == "barsynth: rendering 123.4 of 600 s (21 %)"
+
+
+def test_progress_reads_the_width_of_its_own_terminal(monkeypatch):
+    """On a terminal (a pty 40 columns wide) the width is the terminal's own, not $COLUMNS'."""
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    from barsynth.cli import _Progress
+
+    monkeypatch.setenv("COLUMNS", "200")
+    monkeypatch.setattr("barsynth.cli.PROGRESS_EVERY_S", 0.0)
+    leader, follower = pty.openpty()
+    try:
+        fcntl.ioctl(follower, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 40, 0, 0))
+        with open(follower, "w", closefd=False) as stream:
+            progress = _Progress(stream, after_s=0.0)  # a terminal: on by itself
+            progress(4.1, None, -81.0)
+            progress.close()
+        shown = os.read(leader, 4096).decode()
+    finally:
+        os.close(follower)
+        os.close(leader)
+    drawn = _drawn(shown.replace("\r\n", "\n"))
+    assert drawn == ["barsynth: rendering 4.1 s, 81 of 90 dB "] and len(drawn[0]) == 39
 
 
 def test_progress_line_redraws_in_place():
@@ -626,6 +750,36 @@ def test_a_parameter_without_effect_gets_one_warning_and_still_renders(tmp_path)
     r = run("describe", "banded", "--preset", str(mine))
     assert r.exit_code == 0
     assert r.stderr == "barsynth: warning: length_m has no effect unless tuning = physics\n"
+
+
+@pytest.mark.parametrize("model_name,args,warning", [
+    ("twang", ["--set", "vibrato_depth_hz=30"], "vibrato_depth_hz has no effect unless vibrato_rate_hz > 0"),
+    ("twang", ["--set", "short_cantilever_gain=0", "--set", "short_length_ratio=0.5"],
+     "short_length_ratio has no effect unless short_cantilever_gain > 0"),
+    ("banded", ["--set", "mode_count=2", "--set", "mode_t60s_s=1,0.5", "--set", "q=50"],
+     "q has no effect unless tuning = physics and mode_t60s_s has fewer values than mode_count, or tuning = "
+     "ratios and mode_t60s_s has fewer values than mode_ratios"),
+    ("fd", ["--set", "profile=parabolic", "--set", "undercut_width=0.4"],
+     "undercut_width has no effect unless profile = parabolic or circular and undercut_depth > 0"),
+])
+def test_a_parameter_without_effect_under_a_number_gets_one_warning_and_the_same_sound(tmp_path, model_name, args,
+                                                                                      warning):
+    """A row that acts only while a number (or a list's length) says so: one warning line, and the
+    file is the one rendered without that --set."""
+    given, out = tmp_path / "given.wav", tmp_path / "without.wav"
+    r = run("render", model_name, *args, "--duration", "0.3", "-o", str(given))
+    assert r.exit_code == 0 and r.stderr == f"barsynth: warning: {warning}\n"
+    assert run("render", model_name, *args[:-2], "--duration", "0.3", "-o", str(out)).stderr == ""
+    assert given.read_bytes() == out.read_bytes()
+
+
+def test_a_parameter_acting_under_a_number_gets_no_warning(tmp_path):
+    out = tmp_path / "x.wav"
+    for model_name, args in [("twang", ["--set", "vibrato_rate_hz=5", "--set", "vibrato_depth_hz=30"]),
+                             ("banded", ["--set", "mode_count=3", "--set", "mode_t60s_s=1,0.5", "--set", "q=50"]),
+                             ("banded", ["--set", "tuning=ratios", "--set", "mode_t60s_s=1,0.5", "--set", "q=50"])]:
+        r = run("render", model_name, *args, "--duration", "0.2", "-o", str(out))
+        assert r.exit_code == 0 and r.stderr == "", (model_name, args, r.stderr)
 
 
 def test_material_in_params_set_and_materials(tmp_path):
@@ -707,6 +861,55 @@ def test_output_dash_to_a_terminal_is_refused(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.decode().count("\n") == 1 and "parameter output = - is standard output" in proc.stderr.decode()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_output_dash_with_stdout_closed_is_refused_in_one_line(tmp_path):
+    """`-o - >&-`: Python starts without a standard output; the render is refused before it begins."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    proc = subprocess.run(["sh", "-c", 'exec "$0" -m barsynth render banded --preset marimba -o - >&-', sys.executable],
+                          env=env, cwd=tmp_path, stderr=subprocess.PIPE, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr == ("barsynth: error: parameter output = - is standard output, which is closed; allowed: "
+                           "- only with standard output open and redirected to a file or a pipe\n")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly_with_status_141(tmp_path):
+    """`render -o - | head -c 10`: the WAV was cut, so not 0; the reader chose to stop, so no message."""
+    proc = subprocess.Popen([sys.executable, "-m", "barsynth", "render", "banded", "--preset", "marimba",
+                             "--duration", "2", "-o", "-"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env={**os.environ, "PYTHONPATH": str(ROOT / "src")}, cwd=tmp_path)
+    try:
+        head = os.read(proc.stdout.fileno(), 10)  # (the WAV, 288 kB, cannot fit in the pipe: it must wait)
+        proc.stdout.close()
+        stderr = proc.stderr.read()
+        proc.wait(timeout=120)
+    finally:
+        proc.kill()
+    assert head.startswith(b"RIFF")
+    assert proc.returncode == 141 and stderr == b""
+    assert list(tmp_path.iterdir()) == []
+    reader, writer = os.pipe()
+    os.close(reader)  # gone before the first line
+    try:
+        listed = _barsynth("params", "twang", stdout=writer, stderr=subprocess.PIPE, timeout=60)
+    finally:
+        os.close(writer)
+    assert listed.returncode == 141 and listed.stderr == b""
+
+
+def test_json_ready_makes_numpy_and_non_finite_values_strict_json():
+    from barsynth.jsonout import json_ready
+
+    data = {"t60_s": (1.5, float("inf")), "gain": np.float32(0.5), "count": np.int64(3), "on": np.bool_(True),
+            "modes": [{"hz": np.float64(220.0), "error": np.nan}], "shape": np.array([[1, 2], [3, 4]]),
+            "name": "x", "none": None, "level": -np.inf}
+    ready = json_ready(data)
+    assert ready == {"t60_s": [1.5, None], "gain": 0.5, "count": 3, "on": True, "modes": [{"hz": 220.0, "error": None}],
+                     "shape": [[1, 2], [3, 4]], "name": "x", "none": None, "level": None}
+    assert type(ready["count"]) is int and type(ready["on"]) is bool and type(ready["modes"][0]["hz"]) is float
+    json.dumps(ready, allow_nan=False)
+    assert data["t60_s"] == (1.5, float("inf"))  # the input is left as it was
 
 
 def test_auto_ends_at_the_same_sample_whatever_the_block_sizes(monkeypatch):

@@ -100,4 +100,4 @@ def test_the_contracts_example_exciter_is_one_class_that_keeps_the_interface(cap
     sample = space["Sample"]
     assert issubclass(sample, Exciter) and sample.in_advance and not sample.coupled
     assert [row.name for row in sample.parameters()] == ["sample_force_n"]
-    assert dict(sample.parameters()[0].when)["excitation"] == ("sample",)
+    assert sample.parameters()[0].when == ((("excitation", ("sample",)),),)

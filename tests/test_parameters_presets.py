@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from barsynth import ParameterError, PresetError
 from barsynth import presets as preset_module
 from barsynth.models import get_model, model_names
-from barsynth.parameters import BOOL, CHOICE, INT, Parameter, ParameterTable, parse_assignments
+from barsynth.parameters import BOOL, CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable, parse_assignments
 
 TABLE = ParameterTable("demo_model", [
     Parameter("rate_hz", "Hz", 0.1, 1000.0, 10.0, "a log-scaled rate", scale="log"),
@@ -78,7 +78,7 @@ def test_json_and_markdown_come_from_the_same_rows():
     assert [r["name"] for r in rows] == list(TABLE.names)
     assert rows[0] == {"name": "rate_hz", "unit": "Hz", "min": 0.1, "max": 1000.0, "default": 10.0,
                        "doc": "a log-scaled rate", "scale": "log", "kind": "float", "choices": None,
-                       "max_items": None, "when": None, "sets": None}
+                       "max_items": None, "when": None, "when_text": None, "sets": None}
     md = TABLE.to_markdown()
     assert md.count("\n") == len(TABLE) + 2
     assert "| `mode` | - | a / b | a |" in md
@@ -110,15 +110,13 @@ def test_preset_errors(tmp_path, monkeypatch):
 
 
 def test_a_floats_parameter_takes_lists_from_the_cli_toml_and_json():
-    from barsynth.parameters import FLOATS
-
     ratios = Parameter("ratios", "", 0.5, 100.0, (1.0, 4.0), "mode ratios", kind=FLOATS, max_items=4)
     assert ratios.validate("1, 3.99,9.2") == (1.0, 3.99, 9.2)
     assert ratios.validate([1, 2.5]) == (1.0, 2.5)
     assert ratios.validate("") == () and ratios.validate([]) == ()
     for bad, needle in [("1,200", "value 2 = '200' is out of range"), ("1,x", "'x' is not a number"),
                         ([1, 2, 3, 4, 5], "has 5 values"), (3.0, "is not a list"), ([1, True], "True"),
-                        ("1,nan", "value 2 = 'nan' is out of range")]:
+                        ("1,nan", "value 2 = 'nan' is not a finite number")]:
         with pytest.raises(ParameterError, match=needle) as info:
             ratios.validate(bad)
         assert "allowed: a list of up to 4 values, each 0.5 to 100 dimensionless" in str(info.value)
@@ -150,6 +148,66 @@ def test_when_says_under_which_settings_a_parameter_acts():
     assert table["bow_force_n"].to_json()["when"] == {"excitation": ["bow"]}
     with pytest.raises(ValueError, match="not a value it takes"):
         ParameterTable("y", [Parameter("a", "", 0.0, 1.0, 0.5, "", when={"excitation": ("bow",)})])
+
+
+def test_when_compares_numbers_and_lengths_of_lists():
+    table = ParameterTable("x", [
+        Parameter("tuning", "", None, None, "physics", "", kind=CHOICE, choices=("physics", "ratios")),
+        Parameter("rate_hz", "Hz", 0.0, 8.0, 0.0, "0 turns it off"),
+        Parameter("depth_hz", "Hz", 0.0, 50.0, 18.0, "", when={"rate_hz": Compare(">", 0.0)}),
+        Parameter("mode_count", "", 1, 24, 4, "", kind=INT),
+        Parameter("ratios", "", 0.25, 200.0, (1.0, 4.0), "", kind=FLOATS, max_items=24),
+        Parameter("t60s_s", "s", 0.005, 120.0, (), "", kind=FLOATS, max_items=24),
+        Parameter("q", "", 3.0, 1e4, 300.0, "", when=[
+            {"tuning": ("physics",), "t60s_s": Compare("<", "mode_count", count=True)},
+            {"tuning": ("ratios",), "t60s_s": Compare("<", "ratios", count=True)}]),
+    ])
+    off = "rate_hz > 0"
+    assert table.inactive(table.resolve()) == [("depth_hz", off)]
+    assert table.inactive(table.resolve({"rate_hz": 0.1})) == []
+    q_text = ("tuning = physics and t60s_s has fewer values than mode_count, "
+              "or tuning = ratios and t60s_s has fewer values than ratios")
+    for settings, q_acts in [({"t60s_s": "1,1,1"}, True), ({"t60s_s": "1,1,1,1"}, False),
+                             ({"t60s_s": "1,1,1,1", "mode_count": 5}, True),
+                             ({"tuning": "ratios", "t60s_s": "1,1,1,1"}, False),  # ratios: 2 modes
+                             ({"tuning": "ratios", "t60s_s": "1"}, True),
+                             ({"tuning": "ratios", "t60s_s": "1", "ratios": "1"}, False)]:
+        found = table.inactive(table.resolve({"rate_hz": 1.0, **settings}))
+        assert found == ([] if q_acts else [("q", q_text)]), settings
+    assert table["q"].reads == ("mode_count", "ratios", "t60s_s", "tuning")
+
+
+@pytest.mark.parametrize("model_name,row,values,acting,quiet", [
+    # twang: the vibrato's depth without a rate, the short cantilever's settings and the free bar's
+    # filters with their mix at 0
+    ("twang", "vibrato_depth_hz", (5.0, 40.0), {"vibrato_rate_hz": 5.0}, {"vibrato_rate_hz": 0.0}),
+    ("twang", "short_length_ratio", (0.5, 0.8), {}, {"short_cantilever_gain": 0.0}),
+    ("twang", "slide", (False, True), {}, {"short_cantilever_gain": 0.0}),
+    ("twang", "slide_time_s", (0.1, 0.5), {"slide": True}, {"slide": True, "short_cantilever_gain": 0.0}),
+    ("twang", "noise_cutoff_hz", (1000.0, 8000.0), {}, {"free_bar_gain": 0.0}),
+    ("twang", "free_band_q", (2.0, 50.0), {}, {"free_bar_gain": 0.0}),
+    # banded: q once every mode has its own T60, by physics or by ratios
+    ("banded", "q", (30.0, 1000.0), {"mode_count": 3, "mode_t60s_s": (1.0, 1.0)},
+     {"mode_count": 3, "mode_t60s_s": (1.0, 1.0, 1.0)}),
+    ("banded", "q", (30.0, 1000.0), {"tuning": "ratios", "mode_ratios": (1.0, 4.0, 9.0), "mode_t60s_s": (1.0,)},
+     {"tuning": "ratios", "mode_ratios": (1.0, 4.0), "mode_t60s_s": (1.0, 0.5)}),
+    # fd: the undercut's width at no depth
+    ("fd", "undercut_width", (0.3, 0.8), {"profile": "parabolic", "undercut_depth": 0.3},
+     {"profile": "parabolic", "undercut_depth": 0.0}),
+])
+def test_a_row_said_to_have_no_effect_has_none(model_name, row, values, acting, quiet):
+    """What a row's "when" says, the sound shows: under ``quiet`` two values of the row render the
+    same samples, bit for bit, under ``acting`` different ones."""
+    model = get_model(model_name)
+    table = model.table
+
+    def render(settings, value):
+        return model.render({**settings, row: value}, duration_s=0.6, sample_rate=24000, normalize=False,
+                            dtype=np.float64, seed=3)
+
+    assert table[row].acts_under(table.resolve(acting)) and not table[row].acts_under(table.resolve(quiet))
+    assert not np.array_equal(render(acting, values[0]), render(acting, values[1]))
+    assert np.array_equal(render(quiet, values[0]), render(quiet, values[1]))
 
 
 def test_a_material_sets_youngs_modulus_and_density():
@@ -240,7 +298,7 @@ def test_every_exciter_declares_its_forms_and_its_rows_say_when_they_act():
         assert (exciter.force is not Exciter.force) == exciter.in_advance
         assert (exciter.coupling is not Exciter.coupling) == exciter.coupled
         for row in exciter.parameters():
-            assert dict(row.when)["excitation"] == (name,)
+            assert row.when == ((("excitation", (name,)),),)
 
 
 def test_an_exciter_must_implement_the_forms_it_declares():

@@ -647,7 +647,7 @@ def test_a_control_is_greyed_out_while_its_when_does_not_hold(browser, studio, s
     assert not {"material", "length_m", "mallet_hardness", "q"} & set(inactive)
     assert_greyed(page, "bow_force_n", "excitation = bow")
     assert_greyed(page, "frequency_hz", "tuning = ratios")
-    assert_active(page, "q")  # no "when": always acts
+    assert_active(page, "q")  # acts while some mode has no T60 of its own (none has, by default)
     shots(page, "08-greyed-out")
 
     # Choosing the controlling value brings the control back at once; choosing another greys it again.
@@ -674,6 +674,36 @@ def test_a_control_is_greyed_out_while_its_when_does_not_hold(browser, studio, s
     until(page, "() => window.studio && studio.ready", PICTURE_S, "the page from a link")
     assert_active(page, "bow_force_n")
     assert_active(page, "frequency_hz")
+    assert errors == [] and page.evaluate("() => studio.errors") == []
+    context.close()
+
+
+def test_a_control_that_acts_only_above_a_number_is_greyed_out_below_it(browser, studio):
+    """The twang's vibrato depth acts only while the vibrato runs (vibrato_rate_hz > 0, a number, not
+    a choice): greyed out at rate 0, back as soon as a rate is typed, greyed again at 0; banded's q
+    greys out once every mode has its own T60."""
+    errors: list[str] = []
+    context, page = open_studio(browser, studio.url + "?model=twang", errors)
+    pictures_of(page, "twang")
+    assert_greyed(page, "vibrato_depth_hz", "vibrato_rate_hz > 0")
+    page.fill("#num-vibrato_rate_hz", "5")
+    page.press("#num-vibrato_rate_hz", "Enter")
+    assert_active(page, "vibrato_depth_hz")
+    page.fill("#num-vibrato_rate_hz", "0")
+    page.press("#num-vibrato_rate_hz", "Enter")
+    assert_greyed(page, "vibrato_depth_hz", "vibrato_rate_hz > 0")
+
+    page.goto(studio.url + "?model=banded")
+    until(page, "() => window.studio && studio.ready", PICTURE_S, "banded")
+    assert_active(page, "q")
+    page.fill("#num-mode_count", "2")
+    page.press("#num-mode_count", "Enter")
+    page.fill("#param-mode_t60s_s", "1, 0.5")
+    page.press("#param-mode_t60s_s", "Enter")
+    assert_greyed(page, "q", "tuning = physics and mode_t60s_s has fewer values than mode_count")
+    page.fill("#num-mode_count", "3")
+    page.press("#num-mode_count", "Enter")
+    assert_active(page, "q")
     assert errors == [] and page.evaluate("() => studio.errors") == []
     context.close()
 

@@ -567,7 +567,7 @@ over dsp.smoothing.LEVEL_GLIDE_S, the twang and Farnell's twang over their 5 ms)
 
 def _glides(name: str, p) -> bool:
     return (name in GLIDES_EVERYTHING or p.name in GLIDED_BY_EVERY_MODEL
-            or any(when == "excitation" for when, _ in p.when))
+            or "excitation" in p.reads)
 
 
 @pytest.mark.parametrize("name", MODELS)
@@ -589,7 +589,7 @@ def _changes():
                 values = [not p.default]
             else:
                 values = [p.from_unit_interval(0.25), p.from_unit_interval(0.75)]
-            bowing = dict(p.when).get("excitation") == ("bow",)
+            bowing = p.when == ((("excitation", ("bow",)),),)
             for value in values:
                 yield pytest.param(name, p.name, value, "bow" if bowing else None,
                                    id=f"{name}-{p.name}-{value!s:.8}" + ("-bowing" if bowing else ""))

@@ -10,7 +10,7 @@ import stat
 from pathlib import Path
 from typing import Any
 
-from .checks import show_text
+from .checks import check_extension, show_text
 from .errors import AudioFileError, ParameterError
 
 __all__ = [
@@ -70,13 +70,7 @@ def load_audio(path: str | os.PathLike[str]) -> tuple[Any, float]:
 
 def output_format(path: Path) -> str:
     """The file format (``"WAV"``, ``"FLAC"`` or ``"OGG"``) an output path's extension asks for."""
-    fmt = AUDIO_FORMATS.get(path.suffix.lower())
-    if fmt is None:
-        raise ParameterError(
-            f"parameter output = {show_text(path)} has an unsupported extension; "
-            f"allowed: {', '.join(AUDIO_FORMATS)}"
-        )
-    return fmt
+    return AUDIO_FORMATS[check_extension(path, "parameter output =", tuple(AUDIO_FORMATS))]
 
 
 def output_subtype(fmt: str, subtype: str, sample_rate: float, suffix: str) -> str:

@@ -11,13 +11,14 @@ naming the parameter, the value given, the allowed range and the unit (an empty
 unit reads "dimensionless").
 
 Ranges: ``minimum`` and ``maximum`` are inclusive unless ``minimum_exclusive`` or
-``maximum_exclusive`` is set; ``None`` means no bound. NaN and ±inf are always out
-of range. ``bool`` is never accepted as a number.
+``maximum_exclusive`` is set; ``None`` means no bound. NaN and ±inf are always refused
+("is not a finite number"). ``bool`` is never accepted as a number.
 
 Files: :func:`check_input_file` and :func:`check_output_file` refuse a FIFO, a
 device or a socket at once (reading one would hang or never end; writing one would
-replace it), and :func:`show_text` shortens what a message quotes of a user's text
-(a name, a path) to at most 80 characters.
+replace it), :func:`check_extension` an output name without the extension its format needs,
+and :func:`show_text` shortens what a message quotes of a user's text (a name, a path) to at
+most 80 characters.
 
 This module imports only :mod:`barsynth.errors`, :mod:`math`, :mod:`os`, :mod:`stat`,
 :mod:`sys` and (for type hints) :mod:`collections.abc`, so any part of barsynth may use it
@@ -40,8 +41,8 @@ from .errors import ParameterError
 if TYPE_CHECKING:
     import numpy as np
 
-__all__ = ["check_array", "check_choice", "check_input_file", "check_number", "check_output_file",
-           "check_whole", "file_kind", "number_within", "show_text", "show_value"]
+__all__ = ["check_array", "check_choice", "check_extension", "check_input_file", "check_number",
+           "check_output_file", "check_whole", "file_kind", "number_within", "show_text", "show_value"]
 
 _MAX_SHOWN = 80  # longest repr of a value quoted in a message
 
@@ -134,6 +135,26 @@ def check_output_file(path: object, what: str) -> None:
         raise ParameterError(f"{what} {show_text(name)} is {file_kind(mode)}; allowed: a regular file or a new name")
 
 
+def check_extension(path: object, what: str, extensions: Sequence[str]) -> str:
+    """The extension of ``path``, lower-cased, if it is one of ``extensions`` (``(".wav", ".flac")``),
+    else ParameterError (``what`` names it: ``"parameter output ="``). A name whose only dot starts it
+    (``.wav``) has no extension: it is a hidden file's whole name.
+
+    >>> check_extension("Take 1.WAV", "parameter output =", (".wav",))
+    '.wav'
+    """
+    name = os.path.basename(os.fspath(path))  # type: ignore[arg-type]
+    extension = os.path.splitext(name)[1].lower()
+    if extension in extensions:
+        return extension
+    allowed = f"allowed: a name ending in {', '.join(extensions[:-1])}{' or ' if len(extensions) > 1 else ''}" \
+              f"{extensions[-1]}"
+    if extension:
+        raise ParameterError(f"{what} {show_text(path)} has an unsupported extension; {allowed}")
+    hidden = f" ({show_text(name)} alone is a hidden file's name)" if name.startswith(".") else ""
+    raise ParameterError(f"{what} {show_text(path)} has no extension{hidden}; {allowed}")
+
+
 def _bound(value: float) -> str:
     return str(value) if _is_int(value) else f"{value:g}"
 
@@ -215,6 +236,8 @@ def check_number(
             pass
     if number is None:
         raise ParameterError(f"parameter {name} = {_show(value)} is not a number; {allowed}")
+    if not math.isfinite(number):
+        raise ParameterError(f"parameter {name} = {_show(value)} is not a finite number; {allowed}")
     if not _within(number, minimum, maximum, minimum_exclusive, maximum_exclusive):
         raise ParameterError(f"parameter {name} = {_show(value)} is out of range; {allowed}")
     return number
@@ -289,9 +312,9 @@ def check_array(
         if arr.ndim:
             index = tuple(int(i) for i in np.unravel_index(first, arr.shape))
             where = f"; the first bad element is at index {index[0] if arr.ndim == 1 else index}"
-        raise ParameterError(
-            f"parameter {name} = {float(arr.flat[first])!r} is out of range; {allowed}{where}"
-        )
+        bad = float(arr.flat[first])
+        what = "is out of range" if math.isfinite(bad) else "is not a finite number"
+        raise ParameterError(f"parameter {name} = {bad!r} {what}; {allowed}{where}")
     return arr
 
 

@@ -4,8 +4,12 @@ Every bad input (unknown model, preset or parameter, a value out of range, an
 unreadable file) ends in one line on stderr naming the parameter, the value, the
 allowed range and the unit, exit status 2, and no file written. Ctrl-C ends in one line
 (``barsynth: interrupted; nothing written`` during a render) and exit status 130, and no file
-(not even a temporary one). Warnings (a parameter given without effect, ``--duration auto``
-at its cap) are one line each on stderr; a progress line appears only when stderr is a terminal.
+(not even a temporary one). A reader of standard output that goes away before the end
+(``barsynth render twang -o - | head -c 10``, ``barsynth params twang | head -1``) ends the
+command quietly with exit status 141 (128 + SIGPIPE, what a shell reports for a program that
+SIGPIPE stopped): no message, since the reader chose to stop, but not 0, since the output was
+cut. Warnings (a parameter given without effect, ``--duration auto`` at its cap) are one line
+each on stderr; a progress line appears only when stderr is a terminal, and is cut to its width.
 Heavy modules are imported inside the commands, so ``barsynth --help`` is quick.
 """
 
@@ -25,10 +29,16 @@ from .extras import require
 
 
 INTERRUPTED_STATUS = 130  # 128 + SIGINT, as shells report a process that Ctrl-C stopped
+BROKEN_PIPE_STATUS = 141  # 128 + SIGPIPE, as shells report a process whose reader went away
 
 
 class _Interrupted(Exception):
     """Ctrl-C: one line (this text) on stderr and exit status 130."""
+
+
+class _ReaderGone(Exception):
+    """Standard output's reader went away (a BrokenPipeError, which click would end in status 1):
+    exit status 141 and no message."""
 
 
 def _fail(message: str) -> None:
@@ -57,11 +67,19 @@ class _Group(click.Group):
     """One line and exit status 2 for every refusal: barsynth's own errors, click's
     usage errors (a bad option value, a missing argument) and failures to write."""
 
+    def make_context(self, *args: Any, **kwargs: Any) -> click.Context:
+        try:
+            return super().make_context(*args, **kwargs)
+        except BrokenPipeError:  # (--help into `| head -1`) before click ends it in status 1
+            raise _ReaderGone from None
+
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
         except KeyboardInterrupt:  # before click turns it into Abort (after a blank line)
             raise _Interrupted("interrupted") from None
+        except BrokenPipeError:  # the reader went away (`barsynth params twang | head -1`)
+            raise _ReaderGone from None
 
     def main(self, *args: Any, **kwargs: Any) -> Any:
         kwargs["standalone_mode"] = False
@@ -77,26 +95,97 @@ class _Group(click.Group):
             _fail("aborted")
         except BarsynthError as exc:
             _fail(str(exc))
-        except BrokenPipeError:  # the reader went away (`barsynth params twang | head -1`)
-            sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - so the exit flush stays quiet
-            sys.exit(1)
+        except _ReaderGone:
+            _quiet_stdout()
+            sys.exit(BROKEN_PIPE_STATUS)
         except OSError as exc:  # stdout itself failed, e.g. a full disk
             _fail(f"could not write output: {exc.strerror or exc}")
         sys.exit(result if isinstance(result, int) else 0)
 
 
+def _quiet_stdout() -> None:
+    """Point standard output at /dev/null, so what is left in its buffer goes nowhere at exit
+    (not into a traceback about the broken pipe)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, sys.stdout.fileno())
+    except (AttributeError, ValueError, OSError):  # no standard output to point anywhere
+        pass
+    finally:
+        os.close(devnull)
+
+
 def _json_out(data: Any) -> None:
+    """``data`` as JSON on stdout (NumPy values as numbers, inf and NaN as null: jsonout)."""
     import json
 
-    click.echo(json.dumps(data, indent=2, allow_nan=False, default=_json_default))
+    from .jsonout import json_ready
+
+    click.echo(json.dumps(json_ready(data), indent=2, allow_nan=False))
 
 
-def _json_default(value: Any) -> Any:
-    import numpy as np
+class _Whole(click.ParamType):
+    """A whole number option, checked as it is parsed: a bad one is barsynth's one line
+    (``parameter count = 'abc' is not a whole number; allowed: 1 to 1000 modes (a whole number)``),
+    not click's "Invalid value". ``label`` names it in messages (default: the option's name)."""
 
-    if isinstance(value, np.generic):
-        return value.item()
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+    name = "integer"
+
+    def __init__(self, minimum: int, maximum: int | None = None, unit: str = "", *, label: str | None = None):
+        self.minimum, self.maximum, self.unit, self.label = minimum, maximum, unit, label
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
+        from .checks import check_whole
+
+        number = value
+        if isinstance(value, str):
+            try:
+                number = int(value.strip())
+            except ValueError:
+                try:
+                    number = float(value)  # 3.0 and 1e3 are whole; 2.5, nan and inf are not
+                except ValueError:
+                    number = value
+        return check_whole(self.label or _param_name(param), number, self.unit, self.minimum, self.maximum,
+                           integral_floats=True)
+
+
+class _Real(click.ParamType):
+    """A number option, checked as it is parsed (a finite number in the range, with the unit in
+    the message), as :class:`_Whole`."""
+
+    name = "float"
+
+    def __init__(self, unit: str, *, minimum: float | None = None, minimum_exclusive: bool = False):
+        self.unit, self.minimum, self.minimum_exclusive = unit, minimum, minimum_exclusive
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float:
+        from .checks import check_number
+
+        return check_number(_param_name(param), value, self.unit, minimum=self.minimum,
+                            minimum_exclusive=self.minimum_exclusive, parse_text=True)
+
+
+class _Choice(click.Choice):
+    """A choice option whose refusal is barsynth's one line
+    (``parameter bc = 'nope' is not a known choice; allowed: one of free-free, ...``)."""
+
+    def __init__(self, choices: Any, *, label: str | None = None):
+        super().__init__(choices)
+        self.label = label
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        try:
+            return super().convert(value, param, ctx)
+        except click.BadParameter:
+            from .checks import show_value
+
+            raise ParameterError(f"parameter {self.label or _param_name(param)} = {show_value(value)} is not a "
+                                 f"known choice; allowed: one of {', '.join(map(str, self.choices))}") from None
+
+
+def _param_name(param: click.Parameter | None) -> str:
+    return "value" if param is None or param.name is None else param.name
 
 
 def _shown(value: Any) -> str:
@@ -123,15 +212,20 @@ def main() -> None:
 
 
 # -- physics ----------------------------------------------------------------------------
+_POSITIVE_PA = _Real("Pa", minimum=0.0, minimum_exclusive=True)
+_POSITIVE_KG_M3 = _Real("kg/m^3", minimum=0.0, minimum_exclusive=True)
+_POSITIVE_M = _Real("m", minimum=0.0, minimum_exclusive=True)
+
+
 def _material_options(command: Any) -> Any:
     """--material, or --youngs-modulus and --density, and --length."""
     for option in reversed([
         click.option("--material", metavar="NAME", help="A material from `barsynth materials`."),
-        click.option("--youngs-modulus", "youngs_modulus_pa", type=float, metavar="PA",
+        click.option("--youngs-modulus", "youngs_modulus_pa", type=_POSITIVE_PA, metavar="PA",
                      help="Young's modulus E in Pa (instead of --material)."),
-        click.option("--density", "density_kg_m3", type=float, metavar="KG_M3",
+        click.option("--density", "density_kg_m3", type=_POSITIVE_KG_M3, metavar="KG_M3",
                      help="Density rho in kg/m^3 (instead of --material)."),
-        click.option("--length", "length_m", type=float, required=True, metavar="M", help="Bar length L in m."),
+        click.option("--length", "length_m", type=_POSITIVE_M, required=True, metavar="M", help="Bar length L in m."),
     ]):
         command = option(command)
     return command
@@ -154,13 +248,12 @@ def _material_constants(material: str | None, youngs_modulus_pa: float | None,
 
 @main.command()
 @_material_options
-@click.option("--thickness", "thickness_m", type=float, required=True, metavar="M",
+@click.option("--thickness", "thickness_m", type=_POSITIVE_M, required=True, metavar="M",
               help="Thickness h in m (bending direction).")
 @click.option("--bc", "bc", required=True,
-              type=click.Choice(["free-free", "clamped-free", "clamped-clamped", "pinned-pinned",
-                                 "clamped-pinned"]),
+              type=_Choice(["free-free", "clamped-free", "clamped-clamped", "pinned-pinned", "clamped-pinned"]),
               help="Boundary conditions at the two ends.")
-@click.option("--count", type=int, default=6, show_default=True, help="Number of modes.")
+@click.option("--count", type=_Whole(1, 1000, "modes"), default=6, show_default=True, help="Number of modes.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, bc, count, as_json):
     """Mode frequencies of a uniform bar (Euler-Bernoulli).
@@ -172,8 +265,6 @@ def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, bc,
     from . import physics
 
     youngs_modulus_pa, density_kg_m3 = _material_constants(material, youngs_modulus_pa, density_kg_m3)
-    if not 1 <= count <= 1000:
-        raise ParameterError(f"parameter count = {count} is out of range; allowed: 1 to 1000 modes")
     freqs = physics.bar_frequencies(
         youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3,
         length_m=length_m, thickness_m=thickness_m, bc=bc, count=count,
@@ -349,11 +440,14 @@ def describe(model_name, preset, assignments, sample_rate, as_json):
         click.echo(f"{m.group:<18} {m.frequency_hz:>15.3f} {m.gain:>8.4f} {m.t60_s:>9.3f}{error}")
 
 
-def _check_writable_dir(path: Path, what: str) -> None:
-    """An output path: not an existing FIFO, device or folder, in a folder that exists and is writable."""
-    from .checks import check_output_file
+def _check_writable_dir(path: Path, what: str, *, extensions: tuple[str, ...] = ()) -> None:
+    """An output path: not an existing FIFO, device or folder, with one of ``extensions`` (if any
+    are given), in a folder that exists and is writable."""
+    from .checks import check_extension, check_output_file
 
     check_output_file(path, f"parameter {what} =")
+    if extensions:
+        check_extension(path, f"parameter {what} =", extensions)
     parent = path.resolve().parent
     if not parent.is_dir():
         raise ParameterError(f"parameter {what} = {show_text(path)}: folder {show_text(parent)} does not exist")
@@ -397,6 +491,15 @@ def _write_all(jobs: list[tuple[Path, Any]]) -> None:
         raise BarsynthError(f"could not write {show_text(target)}: {reason}; nothing written") from None
 
 
+def _write_stdout(data: memoryview) -> None:
+    """Write all of ``data`` to standard output (a binary write to a pipe may take only part of it:
+    the rest is written again, so a reader that went away is a BrokenPipeError, not a short file)."""
+    stdout = sys.stdout.buffer
+    while data:
+        data = data[stdout.write(data):]
+    stdout.flush()
+
+
 PROGRESS_AFTER_S = 2.0  # a render that takes longer than this shows its progress on a terminal
 PROGRESS_EVERY_S = 0.1  # how often the progress line is redrawn
 
@@ -412,7 +515,11 @@ class _Progress:
     """The progress line of a long render, on stderr and only on a terminal (``terminal``
     forces it either way): shown once the render has taken ``after_s``, redrawn in place at
     most every PROGRESS_EVERY_S, erased by :meth:`close`. (``after_s``: PROGRESS_AFTER_S.) Called as the render watcher:
-    ``(done_s, total_s, below_peak_db)`` (see models.rendering.watching)."""
+    ``(done_s, total_s, below_peak_db)`` (see models.rendering.watching).
+
+    The line is cut to one column less than the terminal's width, read at each redraw (a line
+    that wrapped would leave its first rows behind, as ``\\r`` goes back to the start of the last
+    row only)."""
 
     def __init__(self, stream: Any = None, *, terminal: bool | None = None, after_s: float | None = None):
         import time
@@ -433,12 +540,22 @@ class _Progress:
         else:
             from .models.rendering import AUTO_MAX_S, AUTO_QUIET_DB
 
-            level = "" if below_peak_db is None else f", now {-below_peak_db:.0f} dB below its peak"
-            text = (f"rendering {done_s:.1f} s (auto: until {AUTO_QUIET_DB:g} dB below its peak, "
-                    f"at most {AUTO_MAX_S:g} s{level})")
-        self.stream.write(f"\rbarsynth: {text}\033[K")
+            down = "" if below_peak_db is None else f", {max(0.0, -below_peak_db):.0f} of {AUTO_QUIET_DB:g} dB down"
+            text = f"rendering {done_s:.1f} s{down} (auto, at most {AUTO_MAX_S:g} s)"
+        line = f"barsynth: {text}"[:max(1, self._columns() - 1)]
+        self.stream.write(f"\r{line}\033[K")
         self.stream.flush()
         self.drawn = True
+
+    def _columns(self) -> int:
+        """The width of the terminal the stream writes to (else $COLUMNS, else 80)."""
+        import shutil
+
+        try:
+            columns = os.get_terminal_size(self.stream.fileno()).columns
+        except (AttributeError, ValueError, OSError):  # no file descriptor, closed, or not a terminal
+            columns = 0
+        return columns or shutil.get_terminal_size().columns  # (a terminal may not know its width: 0)
 
     def close(self) -> None:
         if self.drawn:
@@ -522,14 +639,14 @@ def _render_samples(model, resolved, *, duration: float | str, rate: float, seed
                    "its peak (a bowed sound: after the bow is lifted), at most 60 s, ending with a "
                    "20 ms fade.")
 @_rate_option
-@click.option("--seed", default=0, show_default=True, type=int, metavar="N", help="Noise seed.")
+@click.option("--seed", default=0, show_default=True, type=_Whole(0), metavar="N", help="Noise seed.")
 @click.option("--raw", is_flag=True, help="Keep the model's own level (no peak normalisation to -1 dBFS).")
-@click.option("--subtype", type=click.Choice(SUBTYPES), default="PCM_24", show_default=True,
+@click.option("--subtype", type=_Choice(SUBTYPES), default="PCM_24", show_default=True,
               help="Sample format of the file.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), metavar="PNG",
+@click.option("--plot", "plot_path", type=click.Path(path_type=Path), metavar="PNG",
               help="Also draw a waveform + spectrogram PNG.")
 @click.option("-o", "--output", "output", required=True, metavar="FILE",
-              type=click.Path(dir_okay=False, path_type=Path),
+              type=click.Path(path_type=Path),
               help="Audio file to write (.wav, .flac, .ogg), or - for a WAV file on standard output.")
 def render(model_name, preset, assignments, duration, sample_rate, seed, raw, subtype, plot_path, output):
     """Render a sound to an audio file.
@@ -553,17 +670,18 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
     seconds = check_render_duration(duration)
     to_stdout = str(output) == "-"
     if to_stdout:
+        if sys.stdout is None or getattr(sys.stdout, "buffer", None) is None:  # `>&-`: Python found no stdout
+            raise ParameterError("parameter output = - is standard output, which is closed; allowed: "
+                                 "- only with standard output open and redirected to a file or a pipe")
         if _is_terminal(sys.stdout):
             raise ParameterError("parameter output = - is standard output, which is a terminal; allowed: "
                                  "- only with standard output redirected to a file or a pipe")
         fmt = "WAV"
     else:
+        _check_writable_dir(output, "output")  # (a folder or a device first: /dev/null has no extension)
         fmt = output_format(output)
-        _check_writable_dir(output, "output")
     if plot_path is not None:
-        if plot_path.suffix.lower() != ".png":
-            raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
-        _check_writable_dir(plot_path, "plot")
+        _check_writable_dir(plot_path, "plot", extensions=(".png",))
         require("plot", "--plot")
     import numpy as np
 
@@ -584,9 +702,7 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
 
         buffer = io.BytesIO()
         write_audio(buffer, samples, rate, fmt=fmt, subtype=file_subtype)
-        stdout = click.get_binary_stream("stdout")
-        stdout.write(buffer.getvalue())
-        stdout.flush()
+        _write_stdout(buffer.getbuffer())
         return
     length = f"auto: {samples.size / rate:.2f} s" if seconds == AUTO else f"{seconds:g} s"
     click.echo(f"wrote {output} ({length} at {rate:g} Hz)")
@@ -594,17 +710,17 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
 
 @main.command("tune-undercut")
 @_material_options
-@click.option("--thickness", "thickness_m", type=float, required=True, metavar="M",
+@click.option("--thickness", "thickness_m", type=_POSITIVE_M, required=True, metavar="M",
               help="Full thickness h in m (bending direction).")
-@click.option("--width", "width_m", type=float, default=0.04, show_default=True, metavar="M", help="Bar width in m.")
-@click.option("--target-ratio", type=float, default=4.0, show_default=True, metavar="R",
+@click.option("--width", "width_m", type=_POSITIVE_M, default=0.04, show_default=True, metavar="M", help="Bar width in m.")
+@click.option("--target-ratio", type=_Real("", minimum=1.0), default=4.0, show_default=True, metavar="R",
               help="The f2/f1 to tune to (4 marimba and vibraphone, 3 xylophone).")
-@click.option("--profile", "kind", type=click.Choice(["parabolic", "circular"]), default="parabolic",
+@click.option("--profile", "profile", type=_Choice(["parabolic", "circular"]), default="parabolic",
               show_default=True, help="Shape of the undercut.")
-@click.option("--undercut-width", type=float, default=0.6, show_default=True, metavar="FRACTION",
+@click.option("--undercut-width", type=_Real(""), default=0.6, show_default=True, metavar="FRACTION",
               help="Length of the undercut, as a fraction of the bar's length.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
-def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, width_m, target_ratio, kind,
+def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, width_m, target_ratio, profile,
                   undercut_width, as_json):
     """The undercut depth that tunes a free-free bar's f2/f1, and f3/f1 there.
 
@@ -612,7 +728,6 @@ def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thicknes
     Example:
       barsynth tune-undercut --material rosewood --length 0.38 --thickness 0.02 --target-ratio 4
     """
-    from .checks import check_number
     from .models.fd import FD_TABLE
     from .physics.undercut import tune_undercut as tune
 
@@ -621,14 +736,13 @@ def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thicknes
     bar = {name: FD_TABLE[name].validate(value) for name, value in (
         ("youngs_modulus_pa", youngs_modulus_pa), ("density_kg_m3", density_kg_m3), ("length_m", length_m),
         ("thickness_m", thickness_m), ("width_m", width_m), ("undercut_width", undercut_width))}
-    check_number("target_ratio", target_ratio, "", minimum=1.0)
     cut_width = bar.pop("undercut_width")
-    tuned = tune(target_ratio=target_ratio, kind=kind, undercut_width=cut_width, **bar)
-    settings = {**bar, "profile": kind, "undercut_depth": round(tuned.profile.depth, 6), "undercut_width": cut_width}
+    tuned = tune(target_ratio=target_ratio, kind=profile, undercut_width=cut_width, **bar)
+    settings = {**bar, "profile": profile, "undercut_depth": round(tuned.profile.depth, 6), "undercut_width": cut_width}
     if as_json:
         _json_out({**tuned.to_json(), "fd_parameters": settings})
         return
-    click.echo(f"{kind} undercut over {cut_width:g} of the length: depth {tuned.profile.depth:.4f} of the thickness "
+    click.echo(f"{profile} undercut over {cut_width:g} of the length: depth {tuned.profile.depth:.4f} of the thickness "
                f"({tuned.profile.depth * bar['thickness_m'] * 1000:.2f} mm)")
     click.echo(f"{'mode':>4} {'frequency (Hz)':>15} {'ratio':>8}")
     for n, (f, r) in enumerate(zip(tuned.frequencies_hz, tuned.ratios), start=1):
@@ -641,9 +755,11 @@ def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thicknes
 @click.argument("model_name", metavar="MODEL")
 @_preset_option
 @_set_option
-@click.option("--velocities", "velocity_count", default=24, show_default=True, type=int, metavar="N",
+@click.option("--velocities", "velocity_count", default=24, show_default=True, metavar="N",
+              type=_Whole(2, 200, "values", label="velocities"),
               help="How many bow velocities, spread logarithmically over bow_velocity_m_s's range.")
-@click.option("--forces", "force_count", default=16, show_default=True, type=int, metavar="N",
+@click.option("--forces", "force_count", default=16, show_default=True, metavar="N",
+              type=_Whole(2, 200, "values", label="forces"),
               help="How many bow forces, spread logarithmically over bow_force_n's range.")
 @click.option("--duration", "duration", default="2.0", show_default=True, metavar="S",
               help="How long each setting is bowed before its amplitude is read (1 to 30 s).")
@@ -651,7 +767,7 @@ def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thicknes
               help="Sample rate in Hz.")
 @click.option("--json", "as_json", is_flag=True, help="Print the whole map as JSON.")
 @click.option("-o", "--output", "output", required=True, metavar="PNG",
-              type=click.Path(dir_okay=False, path_type=Path), help="The picture to write (.png).")
+              type=click.Path(path_type=Path), help="The picture to write (.png).")
 def bow_map(model_name, preset, assignments, velocity_count, force_count, duration, sample_rate, as_json, output):
     """Where a bowed object sustains: bow velocity x bow force.
 
@@ -676,12 +792,7 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
         seconds = float(duration)
     except ValueError:
         raise ParameterError(f"parameter duration = {duration!r} is not a number; allowed: 1 to 30 s") from None
-    for name, count in (("velocities", velocity_count), ("forces", force_count)):
-        if not 2 <= count <= 200:
-            raise ParameterError(f"parameter {name} = {count} is out of range; allowed: 2 to 200 values")
-    if output.suffix.lower() != ".png":
-        raise ParameterError(f"parameter output = {show_text(output)} must end in .png")
-    _check_writable_dir(output, "output")
+    _check_writable_dir(output, "output", extensions=(".png",))
     table = model.table
     grid = {}
     if "bow_velocity_m_s" in table.names and "bow_force_n" in table.names:
@@ -707,8 +818,8 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
 @main.command()
 @click.argument("path", metavar="FILE", type=click.Path(path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
-@click.option("--max-partials", default=24, show_default=True, type=int, help="Most partials to report.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), metavar="PNG",
+@click.option("--max-partials", default=24, show_default=True, type=_Whole(1, 500), help="Most partials to report.")
+@click.option("--plot", "plot_path", type=click.Path(path_type=Path), metavar="PNG",
               help="Also draw a waveform + spectrogram PNG with the partials marked.")
 def analyze(path, as_json, max_partials, plot_path):
     """Find a sound's partials: frequency, level, T60, and ratios to the lowest."""
@@ -718,12 +829,8 @@ def analyze(path, as_json, max_partials, plot_path):
     from .audio_io import load_audio
     from .jsonout import json_number
 
-    if not 1 <= max_partials <= 500:
-        raise ParameterError(f"parameter max_partials = {max_partials} is out of range; allowed: 1 to 500")
     if plot_path is not None:
-        if plot_path.suffix.lower() != ".png":
-            raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
-        _check_writable_dir(plot_path, "plot")
+        _check_writable_dir(plot_path, "plot", extensions=(".png",))
         require("plot", "--plot")
     samples, rate = load_audio(path)
     partials = find_partials(samples, rate, max_partials=max_partials)
@@ -781,7 +888,7 @@ def presets(model_name: str | None, as_json: bool) -> None:
 @main.command()
 @click.option("--host", default="127.0.0.1", show_default=True,
               help="Address to listen on; 0.0.0.0 lets other machines use the studio.")
-@click.option("--port", default=8050, show_default=True, type=int, help="TCP port (0 picks a free one).")
+@click.option("--port", default=8050, show_default=True, type=_Whole(0, 65535), help="TCP port (0 picks a free one).")
 def studio(host, port):
     """Every model in the browser: sliders that change the sound as it plays, pictures, WAV and preset downloads.
 
@@ -800,12 +907,12 @@ def listen() -> None:
 
 
 @listen.command("serve")
-@click.argument("config", metavar="TEST.toml", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--results", "results", type=click.Path(dir_okay=False, path_type=Path), metavar="RESULTS.db",
+@click.argument("config", metavar="TEST.toml", type=click.Path(path_type=Path))
+@click.option("--results", "results", type=click.Path(path_type=Path), metavar="RESULTS.db",
               help="SQLite file for the answers (created if missing; default: TEST-results.db beside TEST.toml).")
 @click.option("--host", default="127.0.0.1", show_default=True,
               help="Address to listen on; 0.0.0.0 lets other machines take the test.")
-@click.option("--port", default=8000, show_default=True, type=int, help="TCP port (0 picks a free one).")
+@click.option("--port", default=8000, show_default=True, type=_Whole(0, 65535), help="TCP port (0 picks a free one).")
 def listen_serve(config, results, host, port):
     """Run a listening test in the browser: MUSHRA pages and A/B pairs from TEST.toml.
 
@@ -827,9 +934,9 @@ def listen_serve(config, results, host, port):
 
 @listen.command("report")
 @click.argument("results", metavar="RESULTS.db", type=click.Path(path_type=Path))
-@click.option("--csv", "csv_dir", type=click.Path(file_okay=False, path_type=Path), metavar="DIR",
+@click.option("--csv", "csv_dir", type=click.Path(path_type=Path), metavar="DIR",
               help="Also write ratings.csv, ab.csv, summary.csv and pairwise.csv into DIR (created).")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), metavar="PNG",
+@click.option("--plot", "plot_path", type=click.Path(path_type=Path), metavar="PNG",
               help="Also draw a box plot of the ratings per clip.")
 @click.option("--holm", "holm_correction", is_flag=True, help="Holm-correct the pairwise p-values.")
 def listen_report(results, csv_dir, plot_path, holm_correction):
@@ -837,14 +944,16 @@ def listen_report(results, csv_dir, plot_path, holm_correction):
     from .listening.report import CSV_NAMES, box_plot, csv_tables, report_text, write_table
     from .listening.store import open_existing
 
-    if plot_path is not None and plot_path.suffix.lower() != ".png":
-        raise ParameterError(f"parameter plot = {show_text(plot_path)} must end in .png")
     if plot_path is not None:
-        _check_writable_dir(plot_path, "plot")
+        _check_writable_dir(plot_path, "plot", extensions=(".png",))
         require("plot", "--plot")
     if csv_dir is not None:
-        from .checks import check_output_file
+        from .checks import check_output_file, file_kind
 
+        if csv_dir.exists() and not csv_dir.is_dir():
+            kind = "a file" if csv_dir.is_file() else file_kind(csv_dir.stat().st_mode)
+            raise ParameterError(f"parameter csv = {show_text(csv_dir)} is {kind}; "
+                                 "allowed: a folder, or a new name (the folder is created)")
         for name in CSV_NAMES:
             check_output_file(csv_dir / name, "parameter csv: file")
     with open_existing(results) as store:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import operator
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -24,6 +25,52 @@ INT = "int"
 BOOL = "bool"
 CHOICE = "choice"
 FLOATS = "floats"  # a list of numbers, each within [minimum, maximum]
+
+_COMPARISONS = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge}
+_COUNT_WORDS = {"<": ("fewer values than", "fewer than"), "<=": ("at most as many values as", "at most"),
+                ">": ("more values than", "more than"), ">=": ("at least as many values as", "at least")}
+
+
+@dataclass(frozen=True)
+class Compare:
+    """A condition of a row's ``when`` on a number: the parameter it is keyed by, ``op`` (one of
+    ``<``, ``<=``, ``>``, ``>=``) ``than``, a number or the name of another parameter of the table.
+
+    With ``count`` the parameter is a list and its number of values is compared; a list named by
+    ``than`` counts its values too. ``{"vibrato_rate_hz": Compare(">", 0.0)}``: acts only while
+    the vibrato runs; ``{"mode_t60s_s": Compare("<", "mode_count", count=True)}``: only while
+    some mode has no T60 of its own.
+    """
+
+    op: str
+    than: float | str
+    count: bool = False
+
+    def __post_init__(self) -> None:
+        if self.op not in _COMPARISONS:
+            raise ValueError(f"unknown comparison {self.op!r}; allowed: one of {', '.join(_COMPARISONS)}")
+        if not isinstance(self.than, str) and not (isinstance(self.than, (int, float)) and math.isfinite(self.than)):
+            raise ValueError(f"a comparison is with a finite number or a parameter's name, not {self.than!r}")
+
+    def holds(self, value: Any, resolved: Any) -> bool:
+        """Whether ``value`` (the keyed parameter's, under ``resolved``) passes the comparison."""
+        other = getattr(resolved, self.than) if isinstance(self.than, str) else self.than
+        left = len(value) if self.count else value
+        right = len(other) if isinstance(other, tuple) else other
+        return _COMPARISONS[self.op](left, right)
+
+    def text(self, name: str) -> str:
+        """``vibrato_rate_hz > 0``, ``mode_t60s_s has fewer values than mode_count``: in words."""
+        than = self.than if isinstance(self.than, str) else _fmt(self.than)
+        if not self.count:
+            return f"{name} {self.op} {than}"
+        with_name, with_number = _COUNT_WORDS[self.op]
+        return f"{name} has {with_name} {than}" if isinstance(self.than, str) else \
+            f"{name} has {with_number} {than} values"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"op": self.op, "than": self.than, "count": self.count}
+
 
 @dataclass(frozen=True)
 class Sets:
@@ -52,8 +99,13 @@ class Parameter:
     most ``max_items`` numbers, each within ``[minimum, maximum]`` (written
     ``1,4,10`` on the command line, a list in TOML or JSON).
 
-    ``when`` (``{"excitation": ("bow",)}``) says under which settings the parameter acts
-    at all: elsewhere it has no effect (the CLI warns, the studio greys it out).
+    ``when`` says under which settings the parameter acts at all: elsewhere it has no effect (the
+    CLI warns, the studio greys it out). It maps names of other parameters to a condition each,
+    all of which must hold: a tuple of values of a choice or bool (``{"excitation": ("bow",)}``:
+    the parameter holds one of them), or a :class:`Compare` of a number or of a list's length
+    (``{"vibrato_rate_hz": Compare(">", 0.0)}``). A list of such mappings says the parameter acts
+    when any one of them holds. Kept as :attr:`when`: a tuple of those clauses, each a tuple of
+    ``(name, condition)`` pairs in the order given (empty: the parameter always acts).
     ``sets``, for a choice, maps a chosen value to the other parameters it sets (a
     ``material`` sets Young's modulus and density); see :meth:`ParameterTable.resolve`.
     """
@@ -72,10 +124,13 @@ class Parameter:
     sets: Any = None
 
     def __post_init__(self) -> None:
-        # ``when``: the parameter acts only when each named parameter holds one of the listed
-        # values (``{"tuning": ("ratios",)}``); kept as sorted pairs so the record stays hashable.
-        when = self.when.items() if isinstance(self.when, Mapping) else self.when
-        object.__setattr__(self, "when", tuple(sorted((name, tuple(values)) for name, values in when)))
+        # ``when``: kept as a tuple of clauses of pairs, so the record stays hashable.
+        clauses = [self.when] if isinstance(self.when, Mapping) else list(self.when)
+        if not all(isinstance(clause, Mapping) for clause in clauses):
+            raise ValueError(f"{self.name}: when must be a mapping or a list of mappings")
+        object.__setattr__(self, "when", tuple(
+            tuple((name, c if isinstance(c, Compare) else tuple(c)) for name, c in clause.items())
+            for clause in clauses if clause))
         if self.kind not in (FLOAT, INT, BOOL, CHOICE, FLOATS):
             raise ValueError(f"{self.name}: unknown kind {self.kind!r}")
         if self.scale not in ("linear", "log"):
@@ -127,20 +182,39 @@ class Parameter:
             "kind": self.kind,
             "choices": list(self.choices) if self.kind == CHOICE else None,
             "max_items": self.max_items if self.kind == FLOATS else None,
-            "when": {name: list(values) for name, values in self.when} or None,
+            "when": self._when_json(),
+            "when_text": self.when_text() or None,
             "sets": None if self.sets is None else {
                 "names": list(self.sets.names),
                 "values": {c: list(self.sets.values(c, self.default).values()) for c in self.choices
                            if c != self.default}},
         }
 
+    def _when_json(self) -> Any:
+        """``when`` for the studio: None, one clause (``{"excitation": ["bow"]}``, a comparison
+        as ``{"op", "than", "count"}``) or a list of clauses (any one of which must hold)."""
+        clauses = [{name: c.to_json() if isinstance(c, Compare) else list(c) for name, c in clause}
+                   for clause in self.when]
+        return None if not clauses else clauses[0] if len(clauses) == 1 else clauses
+
+    @property
+    def reads(self) -> tuple[str, ...]:
+        """The other parameters ``when`` reads (sorted): a change of one may turn this one on or off."""
+        return tuple(sorted({name for clause in self.when for name, _ in clause}
+                            | {c.than for clause in self.when for _, c in clause
+                               if isinstance(c, Compare) and isinstance(c.than, str)}))
+
     def acts_under(self, resolved: Any) -> bool:
         """Whether this parameter has any effect with the other parameters at ``resolved``."""
-        return all(getattr(resolved, name) in values for name, values in self.when)
+        return not self.when or any(all(_holds(getattr(resolved, name), c, resolved) for name, c in clause)
+                                    for clause in self.when)
 
     def when_text(self) -> str:
-        """``excitation = bow``: the settings under which the parameter acts, in words."""
-        return " and ".join(f"{name} = {' or '.join(_word(v) for v in values)}" for name, values in self.when)
+        """``excitation = bow``, ``vibrato_rate_hz > 0``, ``tuning = physics and ..., or ...``: the
+        settings under which the parameter acts, in words."""
+        return ", or ".join(" and ".join(c.text(name) if isinstance(c, Compare)
+                                         else f"{name} = {' or '.join(_word(v) for v in c)}" for name, c in clause)
+                            for clause in self.when)
 
     # -- validating -----------------------------------------------------------------
     def validate(self, value: Any) -> Any:
@@ -169,7 +243,7 @@ class Parameter:
             return self._validate_floats(value)
         number = self._to_number(value)
         assert self.minimum is not None and self.maximum is not None
-        if not (math.isfinite(number) and self.minimum <= number <= self.maximum):
+        if not self.minimum <= number <= self.maximum:
             raise self._error(value)
         if self.kind == INT:
             if number != int(number):
@@ -194,28 +268,33 @@ class Parameter:
                                  f"{self.range_text()}")
         out = []
         for position, item in enumerate(items, start=1):
-            number = self._to_number(item)
+            number = self._to_number(item, position)
             assert self.minimum is not None and self.maximum is not None
-            if not (math.isfinite(number) and self.minimum <= number <= self.maximum):
+            if not self.minimum <= number <= self.maximum:
                 raise ParameterError(f"parameter {self.name}: value {position} = {show_value(item)} is out of range; "
                                      f"allowed: {self.range_text()}")
             out.append(number)
         return tuple(out)
 
-    def _to_number(self, value: Any) -> float:
+    def _to_number(self, value: Any, position: int | None = None) -> float:
+        """``value`` (a number, or text holding one) as a finite float, or ParameterError;
+        ``position``: which item of a list it is (for the message)."""
+        which = self.name if position is None else f"{self.name}: value {position}"
         if isinstance(value, bool):
             raise self._error(value)
         try:
-            if isinstance(value, (int, float)):
-                return float(value)
-            return float(str(value).strip())
+            number = float(value) if isinstance(value, (int, float)) else float(str(value).strip())
         except OverflowError:  # an int beyond float range: out of every range
             return math.inf
         except ValueError:
             raise ParameterError(
-                f"parameter {self.name} = {show_value(value)} is not a number; "
-                f"allowed: {self.range_text()}"
+                f"parameter {which} = {show_value(value)} is not a number; allowed: {self.range_text()}"
             ) from None
+        if not math.isfinite(number):
+            raise ParameterError(
+                f"parameter {which} = {show_value(value)} is not a finite number; allowed: {self.range_text()}"
+            )
+        return number
 
     def _error(self, value: Any) -> ParameterError:
         return ParameterError(
@@ -288,10 +367,24 @@ class ParameterTable:
         self.dataclass = record
         _TABLES[record] = self
         for p in self.parameters:
-            for name, values in p.when:
-                if name not in self._by_name or not all(
-                        v in (self._by_name[name].choices or (True, False)) for v in values):
-                    raise ValueError(f"{model}: {p.name} acts when {name} is {values}, not a value it takes")
+            for name, condition in (pair for clause in p.when for pair in clause):
+                if not self._can_take(name, condition):
+                    raise ValueError(f"{model}: {p.name} acts when {name} is {condition}, not a value it takes")
+
+    def _can_take(self, name: str, condition: Any) -> bool:
+        """Whether parameter ``name`` can meet ``condition`` of a ``when``: a choice's or bool's
+        values, or a comparison of a number (of a list's length with ``count``) with a number or
+        with another number or list of the table."""
+        row = self._by_name.get(name)
+        if row is None:
+            return False
+        if not isinstance(condition, Compare):
+            return row.kind in (CHOICE, BOOL) and all(v in (row.choices or (True, False)) for v in condition)
+        compared = row.kind == FLOATS if condition.count else row.kind in (FLOAT, INT)
+        if not isinstance(condition.than, str):
+            return compared
+        other = self._by_name.get(condition.than)
+        return compared and other is not None and other.kind in (FLOAT, INT, FLOATS)
 
     def _check_record(self, record: type) -> None:
         params = getattr(record, "__dataclass_params__", None)
@@ -450,6 +543,11 @@ def parse_assignments(items: Iterable[str]) -> dict[str, str]:
             raise ParameterError(f"--set {show_value(item)} must have the form NAME=VALUE")
         out[name] = value.strip()
     return out
+
+
+def _holds(value: Any, condition: Any, resolved: Any) -> bool:
+    """Whether a parameter's ``value`` meets one ``condition`` of a ``when`` (see :class:`Parameter`)."""
+    return condition.holds(value, resolved) if isinstance(condition, Compare) else value in condition
 
 
 def _word(value: Any) -> str:

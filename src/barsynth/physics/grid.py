@@ -60,13 +60,12 @@ class BarGrid:
 
     ``x_m``: positions of the nodes that move (m); ``mass``: ``M``'s diagonal (kg);
     ``stiffness`` and ``damping_laplacian``: ``K`` and ``L`` as dense symmetric
-    matrices over the moving nodes; ``spacing_m``: the node spacing ``dx``.
+    matrices over the moving nodes.
     """
 
     bc: str
     length_m: float
     points: int
-    spacing_m: float
     x_m: np.ndarray
     mass: np.ndarray
     stiffness: np.ndarray
@@ -154,7 +153,7 @@ def bar_grid(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: float,
             mass[node] *= 0.5
     moving = np.array([not ((l == 0 and left != "free") or (l == n - 1 and right != "free")) for l in range(n)])
     keep = np.flatnonzero(moving)
-    return BarGrid(bc, float(length_m), n, dx, x[keep], mass[keep], stiffness[np.ix_(keep, keep)],
+    return BarGrid(bc, float(length_m), n, x[keep], mass[keep], stiffness[np.ix_(keep, keep)],
                    laplacian[np.ix_(keep, keep)])
 
 

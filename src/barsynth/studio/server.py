@@ -30,7 +30,6 @@ HTTP API (JSON in and out; errors are ``{"error": "one line"}``):
 
 from __future__ import annotations
 
-import math
 import sys
 from collections.abc import Callable, Iterable
 from importlib import resources
@@ -43,6 +42,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..errors import BarsynthError, ModelError
 from ..checks import number_within, show_value
+from ..jsonout import json_ready
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_json,
                          server_config, shown_address)
 from .live import MAX_MESSAGE_BYTES, play
@@ -124,14 +124,6 @@ def _width(value: Any) -> int:
     return int(value)
 
 
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, tuple):
-        return list(value)
-    return value
-
-
 def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Workers | None = None) -> FastAPI:
     """The studio's FastAPI app; ``allowed_hosts`` as for the listening server (None: any);
     ``workers`` run the renders (by default a pool of ``MAX_RENDERS`` worker processes)."""
@@ -198,7 +190,7 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
             resolved = model.table.resolve(preset_parameters(model.name, preset))
         except PresetError as exc:
             raise Refused(404, str(exc)) from None
-        values = {k: _json_safe(v) for k, v in model.table.as_dict(resolved).items()}
+        values = json_ready(model.table.as_dict(resolved))
         return JSONResponse({"model": model.name, "preset": preset, "description": info.get("description", ""),
                              "parameters": values})
 

@@ -102,9 +102,7 @@ class AllpassDesign:
 
     sample_rate: float
     bc: str
-    requested_order: int
     band_hz: tuple[float, float]
-    positions: tuple[float, float]
     strike_at_a: bool
     pickup_at_a: bool
     filters: tuple[Filter, Filter, Filter, Filter]  # end0, right, endL, left
@@ -193,7 +191,7 @@ def _design(e: float, rho: float, length: float, thickness: float, width: float,
     pickup_at_a = pickup <= strike
     modes, spurious = _report(filters, injection, pickup_rows, strike_at_a, pickup_at_a, bar, w_all, count,
                               first_turn(plans, targets, w_all[0]), q)
-    return AllpassDesign(rate, bc, order, (w_lo * rate / (2 * math.pi), w_hi * rate / (2 * math.pi)), (a, b),
+    return AllpassDesign(rate, bc, (w_lo * rate / (2 * math.pi), w_hi * rate / (2 * math.pi)),
                          strike_at_a, pickup_at_a, filters, injection, pickup_rows, modes, spurious)
 
 

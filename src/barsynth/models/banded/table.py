@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...exciters import STRUCK_OR_PLUCKED, Bow, Pluck, Strike
-from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
+from ...parameters import CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
 from ..rows import bar_size_parameters, excitation_parameter, level_parameter
 
 MAX_MODES = 24
@@ -19,6 +19,9 @@ MIN_Q = 3.0
 
 PHYSICS = {"tuning": ("physics",)}
 RATIOS = {"tuning": ("ratios",)}
+SOME_MODE_WITHOUT_T60 = [{**PHYSICS, "mode_t60s_s": Compare("<", "mode_count", count=True)},
+                         {**RATIOS, "mode_t60s_s": Compare("<", "mode_ratios", count=True)}]
+"""When ``q`` acts: while some mode has no T60 of its own in ``mode_t60s_s`` (design.mode_table)."""
 
 
 BANDED_EXCITERS = (Strike, Bow, Pluck)
@@ -76,7 +79,8 @@ BANDED_TABLE = ParameterTable(
         Parameter("mode_t60s_s", "s", 0.005, 120.0, (),
                   "T60 of the first modes, in order (the rest follow q)", kind=FLOATS, max_items=MAX_MODES),
         Parameter("q", "", MIN_Q, 10000.0, 300.0,
-                  "quality factor of every mode without its own T60: T60 = Q ln(1000) / (pi f)", scale="log"),
+                  "quality factor of every mode without its own T60: T60 = Q ln(1000) / (pi f)", scale="log",
+                  when=SOME_MODE_WITHOUT_T60),
         Parameter("shape", "", None, None, "bar",
                   "tuning = ratios: mode shapes for positions: bar (free-free bending modes) or ring "
                   "(cos(n 2 pi x), n = 2, 3, ... around a glass or bowl)", kind=CHOICE, choices=("bar", "ring"),

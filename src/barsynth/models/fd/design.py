@@ -225,7 +225,6 @@ def discrete_t60(omega: np.ndarray, sigma: np.ndarray, theta: float, step_rate: 
 class SchemeModes(NamedTuple):
     """The modes the scheme rings below the output's Nyquist (see :func:`scheme_modes`)."""
 
-    grid_hz: np.ndarray
     frequency_hz: np.ndarray
     t60_s: np.ndarray
     shapes: np.ndarray
@@ -235,7 +234,7 @@ class SchemeModes(NamedTuple):
 
 def scheme_modes(p: FdParams, sample_rate: float, count: int) -> SchemeModes:
     """The modes of the grid the model runs on, up to ``count`` and below the output's Nyquist:
-    grid frequencies, the frequencies the scheme rings them at (Hz), T60s (s) and shapes."""
+    the frequencies the scheme rings them at (Hz), T60s (s) and shapes."""
     grid = grid_of(p)
     check_stability(p, grid, sample_rate)
     count = min(count, grid.mass.size - rigid_mode_count(grid.bc))
@@ -243,7 +242,7 @@ def scheme_modes(p: FdParams, sample_rate: float, count: int) -> SchemeModes:
     sigma = p.sigma0_per_s + p.sigma1_m2_s * np.einsum("in,ij,jn->n", shapes, grid.damping_laplacian, shapes)
     ringing = discrete_frequency(omega, p.theta, sample_rate * p.oversampling)
     heard = ringing < sample_rate / 2  # (with oversampling, the modes above the output's Nyquist are filtered out)
-    return SchemeModes(omega[heard] / (2 * math.pi), ringing[heard],
+    return SchemeModes(ringing[heard],
                        discrete_t60(omega[heard], sigma[heard], p.theta, sample_rate * p.oversampling),
                        shapes[:, heard], grid)
 

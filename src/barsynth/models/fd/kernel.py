@@ -155,16 +155,6 @@ def solve(r: np.ndarray, factors: np.ndarray) -> np.ndarray:
 _INNER = {"nogil": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True, "fastmath": {"contract"}}
 
 
-@njit(cache=True, inline="always")
-def _solve(r, l1, l2, inv_d, s):  # pragma: no cover - compiled
-    """``s = A^-1 r`` on padded vectors (``s``'s pads stay 0)."""
-    end = r.size - PAD
-    for q in range(PAD, end):
-        s[q] = r[q] - l1[q] * s[q - 1] - l2[q] * s[q - 2]
-    for q in range(end - 1, PAD - 1, -1):
-        s[q] = s[q] * inv_d[q] - l1[q + 1] * s[q + 1] - l2[q + 2] * s[q + 2]
-
-
 @njit(**_INNER)
 def _potential(squeeze, stiffness, exponent):  # pragma: no cover - compiled
     """The contact spring's energy ``k d^(p+1) / (p+1)`` (J) at a squeeze ``d`` (m)."""

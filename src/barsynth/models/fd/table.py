@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...exciters import BOWED, STRUCK_OR_PLUCKED, Bow, Pluck, Strike
-from ...parameters import CHOICE, FLOATS, INT, Parameter, ParameterTable
+from ...parameters import CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
 from ...physics.boundary import BOUNDARY_CONDITIONS
 from ...physics.profiles import PROFILE_KINDS, THINNEST
 from ..rows import bar_size_parameters, excitation_parameter, level_parameter
@@ -67,7 +67,7 @@ FD_TABLE = ParameterTable(
                   when=UNDERCUT),
         Parameter("undercut_width", "", 0.05, 1.0, 0.6,
                   "profile = parabolic or circular: length of the undercut, fraction of the bar's length",
-                  when=UNDERCUT),
+                  when={**UNDERCUT, "undercut_depth": Compare(">", 0.0)}),
         Parameter("profile_samples", "", THINNEST, 1.0, (),
                   "profile = samples: thickness / thickness_m at equally spaced points from end to end",
                   kind=FLOATS, max_items=64, when={"profile": ("samples",)}),

@@ -15,8 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...parameters import BOOL, CHOICE, Parameter, ParameterTable
+from ...parameters import BOOL, CHOICE, Compare, Parameter, ParameterTable
 from ..rows import material_parameter
+
+
+VIBRATO_ON = {"vibrato_rate_hz": Compare(">", 0.0)}
+SHORT_HEARD = {"short_cantilever_gain": Compare(">", 0.0)}
+FREE_BAR_HEARD = {"free_bar_gain": Compare(">", 0.0)}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -66,15 +71,15 @@ TWANG_TABLE = ParameterTable(
         Parameter("vibrato_rate_hz", "Hz", 0.0, 8.0, 0.0,
                   "vibrato rate; 0 turns vibrato off"),
         Parameter("vibrato_depth_hz", "Hz", 0.0, 50.0, 18.0,
-                  "vibrato swing of the loudest mode (paper: 18 Hz), at most 6 %"),
+                  "vibrato swing of the loudest mode (paper: 18 Hz), at most 6 %", when=VIBRATO_ON),
         Parameter("slide", "", None, None, False,
                   "slide: the short-cantilever modes rise 35 % (the ruler is shortened)",
-                  kind=BOOL),
+                  kind=BOOL, when=SHORT_HEARD),
         Parameter("slide_time_s", "s", 0.05, 10.0, 1.0,
                   "duration of the slide's S-shaped rise, from the trigger", scale="log",
-                  when={"slide": (True,)}),
+                  when={"slide": (True,), **SHORT_HEARD}),
         Parameter("short_length_ratio", "", 0.3, 0.95, 0.7,
-                  "length of the short cantilever at the desk edge, as a fraction of L"),
+                  "length of the short cantilever at the desk edge, as a fraction of L", when=SHORT_HEARD),
         Parameter("full_cantilever_gain", "", 0.0, 1.0, 1.0,
                   "mix of the full-length cantilever modes"),
         Parameter("short_cantilever_gain", "", 0.0, 1.0, 0.75,
@@ -82,9 +87,10 @@ TWANG_TABLE = ParameterTable(
         Parameter("free_bar_gain", "", 0.0, 4.0, 1.0,
                   "mix of the noise-excited free-bar modes"),
         Parameter("noise_cutoff_hz", "Hz", 100.0, 20000.0, 4000.0,
-                  "cutoff of the one-pole low-pass on the free-bar noise", scale="log"),
+                  "cutoff of the one-pole low-pass on the free-bar noise", scale="log", when=FREE_BAR_HEARD),
         Parameter("free_band_q", "", 1.0, 100.0, 10.0,
-                  "Q of each 2nd-order section of the free-bar 4th-order band-passes", scale="log"),
+                  "Q of each 2nd-order section of the free-bar 4th-order band-passes", scale="log",
+                  when=FREE_BAR_HEARD),
         Parameter("level_db", "dB", -60.0, 0.0, -3.0,
                   "output level of a note's first peak, dB re full scale"),
     ],

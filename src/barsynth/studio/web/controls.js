@@ -1,7 +1,8 @@
 // barsynth studio: the controls, built from the chosen model's parameter table (GET /api/models):
 // a slider and a number box for a number, a <select> for a choice, a checkbox for a bool and a
-// text box for a list. A row whose "when" ({"excitation": ["bow"]}) does not hold for the
-// current values is greyed out: disabled, dimmed, its title saying under which settings it acts.
+// text box for a list. A row whose "when" ({"excitation": ["bow"]}, {"vibrato_rate_hz": {"op": ">",
+// "than": 0}}) does not hold for the current values is greyed out: disabled, dimmed, its title
+// saying under which settings it acts (the row's "when_text", in the table's words).
 
 import { $, RATE, api, clearMessage, current, element, failed, fmt, listText, same, studio } from "./page.js";
 
@@ -75,16 +76,42 @@ function asTyped(row, text) {
 
 // --- when a control acts -----------------------------------------------------------------------
 
-// Whether a row has any effect with these values: its "when" names parameters and the values
-// under which it acts (all must hold); a row without "when" always acts.
-export function acts(row, values) {
-  return !row.when || Object.entries(row.when).every(([name, allowed]) => allowed.some((a) => same(a, values[name])));
+const COMPARE = { "<": (a, b) => a < b, "<=": (a, b) => a <= b, ">": (a, b) => a > b, ">=": (a, b) => a >= b };
+
+// A list counts its values where a comparison has "count" (and where "than" names a list).
+const counted = (v) => (Array.isArray(v) ? v.length : v);
+
+// Whether parameter name's value meets one condition of a "when": a list of values it must hold
+// one of, or a comparison {op, than, count} with a number or with another parameter's value
+// (parameters.py: Compare.holds).
+function holds(condition, name, values) {
+  const value = values[name];
+  if (Array.isArray(condition)) return condition.some((a) => same(a, value));
+  const than = typeof condition.than === "string" ? counted(values[condition.than]) : condition.than;
+  return COMPARE[condition.op](condition.count ? value.length : value, than);
 }
 
-// "excitation = bow", "tuning = ratios and shape = bar or ring": a "when" in words.
-export function whenText(when) {
-  return Object.entries(when).map(([name, allowed]) => `${name} = ${allowed.map(String).join(" or ")}`)
-    .join(" and ");
+// A row's "when" as a list of clauses: null (none), one clause, or a list of them.
+const clauses = (row) => (!row.when ? [] : Array.isArray(row.when) ? row.when : [row.when]);
+
+// Whether a row has any effect with these values: its "when" maps names of parameters to a
+// condition each (all must hold), or is a list of such maps (any one must hold); a row without
+// "when" always acts (parameters.py: Parameter.acts_under).
+export function acts(row, values) {
+  const all = clauses(row);
+  return all.length === 0 || all.some((clause) => Object.entries(clause).every(([name, c]) => holds(c, name, values)));
+}
+
+// The parameters a row's "when" reads: a change of one may turn the row on or off.
+export function reads(row) {
+  const names = new Set();
+  for (const clause of clauses(row)) {
+    for (const [name, c] of Object.entries(clause)) {
+      names.add(name);
+      if (!Array.isArray(c) && typeof c.than === "string") names.add(c.than);
+    }
+  }
+  return [...names].sort();
 }
 
 // Grey out every control that has no effect now and bring back every one that has.
@@ -93,7 +120,7 @@ function greyOut() {
   for (const [name, control] of controls) {
     const on = acts(control.row, current.values);
     if (!on) inactive.push(name);
-    const title = on ? control.tip : `no effect unless ${whenText(control.row.when)}; ${control.tip}`;
+    const title = on ? control.tip : `no effect unless ${control.row.when_text}; ${control.tip}`;
     control.wrap.classList.toggle("inactive", !on);
     control.wrap.title = title;
     for (const input of control.inputs) {
@@ -164,7 +191,7 @@ export function buildControls() {
   controls.clear();
   controllers.clear();
   for (const row of current.model.parameters) {
-    for (const name of Object.keys(row.when || {})) controllers.add(name);
+    for (const name of reads(row)) controllers.add(name);
   }
   $("controls").replaceChildren(...current.model.parameters.map(makeControl));
 }
