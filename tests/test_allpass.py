@@ -200,33 +200,6 @@ def test_bars_it_cannot_build_are_refused_with_one_line(change, needles):
     assert "\n" not in text and all(needle in text for needle in needles), text
 
 
-@pytest.mark.parametrize("dtype", [np.float32, np.float64])
-def test_processing_into_the_callers_buffer_allocates_nothing(dtype):
-    """After prepare (and a warm-up), process(n, out=buf) allocates no samples: neither for the
-    waveguide nor for a retired one still ringing beside it (a block here is 32 KB)."""
-    import tracemalloc
-
-    block = 4096
-    voice = AllpassVoice({"allpass_order": 12, "q": 10000.0}, sample_rate=RATE, max_block=block)
-    voice.trigger()
-    voice.process(300)
-    voice.set_parameters(pickup_position=0.3)  # a new waveguide: the old one rings on beside it
-    voice.trigger()
-    buf = np.empty(block, dtype=dtype)
-    for _ in range(300):
-        voice.process(block, out=buf)
-    tracemalloc.start()
-    try:
-        before = tracemalloc.get_traced_memory()[0]
-        for _ in range(200):
-            voice.process(block, out=buf)
-        after, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    assert len(voice._retired) == 1 and np.abs(buf).max() > 0
-    assert after - before < 8192 and peak - before < 16384, (after - before, peak - before)
-
-
 def test_a_retired_waveguide_fades_out_over_fade_s_and_is_then_gone():
     """After a change that rebuilds the waveguide, the old one plays on exactly as if nothing
     had changed, then its last FADE_S fall linearly to nothing: the voice's output is the

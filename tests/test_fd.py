@@ -1,5 +1,7 @@
 """The finite-difference bar (spec 3.3): its spectrum against its own operator and against
-physics, losses, stability, mallet, pluck, bow (spec 3.1's behaviours) and streaming."""
+physics, losses, stability, mallet, pluck, bow (spec 3.1's behaviours). Blocks with events at one,
+three and four steps a sample, large blocks allocating nothing and the level's glide through a
+redesign are tests/test_voice_contract.py's scenarios."""
 
 from __future__ import annotations
 
@@ -15,7 +17,6 @@ from barsynth.models import get_model
 from barsynth.models.fd import FdVoice, mode_errors_cents
 from barsynth.physics import BOUNDARY_CONDITIONS, bar_frequencies
 from barsynth.physics.undercut import tune_undercut
-from streaming import play
 
 MODEL = get_model("fd")
 RATE = 44100
@@ -153,19 +154,6 @@ def test_a_pluck_holds_the_point_out_and_lets_go():
     assert np.max(np.abs(x)) == pytest.approx(2e-3 * 2 * math.pi * f1, rel=0.5)  # about the first mode's swing
 
 
-@pytest.mark.parametrize("steps", [1, 3, 4])
-@pytest.mark.parametrize("block", [1, 7, 37, 1000])
-def test_blocks_equal_one_long_block(block, steps):
-    events = {0: ("trigger", {}), 5000: ("set", {"excitation": "bow", "bow_force_n": 2.0}), 5001: ("trigger", {}),
-              12000: ("set", {"bow_velocity_m_s": 0.2}), 13000: ("set", {"excitation": "strike"}),
-              13001: ("trigger", {}), 20000: ("release", {})}
-    def voice():
-        return FdVoice({"points": 40, "oversampling": steps}, sample_rate=RATE)
-    whole = play(voice(), events, 25000, 25000)
-    assert np.max(np.abs(whole)) > 0.01
-    assert np.array_equal(play(voice(), events, 25000, block), whole)
-
-
 @pytest.mark.parametrize("change", [(1, 8), (8, 4), (2, 1)])
 def test_a_new_step_keeps_the_bar_ringing_as_it_was(change):
     from scipy.signal import butter, sosfiltfilt
@@ -238,38 +226,6 @@ def test_the_bowed_fd_bar_sustains_a_harmonic_tone_and_stops():
     assert np.sqrt(np.mean(x[int(1.9 * RATE):int(2.0 * RATE)] ** 2)) < 1e-3 * rms
 
 
-# -- the voice contract ---------------------------------------------------------------------
-@pytest.mark.parametrize("excitation", ["strike", "bow", "pluck"])
-@pytest.mark.parametrize("dtype", [np.float32, np.float64])
-def test_process_into_the_callers_buffer_allocates_nothing(excitation, dtype):
-    """Blocks rendered into the caller's buffer neither keep nor pass through memory: a block
-    of float64 samples (128 kB here) allocated per call would show in the peak, one small object
-    kept per call in what stays. (numba's dispatcher keeps some tens of kB of its own while it
-    types the records in its first few thousand calls: warmed up first, and below the margin.)"""
-    import tracemalloc
-
-    size, margin = 16384, 64 * 1024
-    voice = MODEL.voice({"excitation": excitation, "points": 20, "oversampling": 1}, sample_rate=RATE,
-                        max_block=size)
-    voice.trigger()
-    small, block = np.zeros(16, dtype=dtype), np.zeros(size, dtype=dtype)
-    tracemalloc.start()
-    try:
-        for _ in range(3000):
-            voice.process(16, out=small)
-        before = tracemalloc.get_traced_memory()[0]
-        tracemalloc.reset_peak()
-        for _ in range(20):
-            assert voice.process(size, out=block) is block
-        for _ in range(3000):
-            voice.process(16, out=small)
-        after, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    assert peak - before < margin and after - before < margin
-    assert np.all(np.isfinite(block))
-
-
 def test_the_model_declares_what_it_can_do():
     from barsynth.models.fd import FdParams
 
@@ -293,29 +249,6 @@ def test_a_pluck_takes_its_cap_from_the_exciter(monkeypatch):
     capped = largest()
     monkeypatch.setattr(pluck_module, "PLUCK_REACH", 2.0 * pluck_module.PLUCK_REACH)
     assert largest() == pytest.approx(2.0 * capped)
-
-
-def test_a_new_level_glides_there_without_a_click():
-    """level_db glides over LEVEL_GLIDE_S in equal steps of dB (dsp.smoothing, multiplicative):
-    the sound with the change is the sound without it times that ramp, from 1 on."""
-    from barsynth.dsp.smoothing import LEVEL_GLIDE_S
-
-    def run(change):
-        voice = FdVoice({"points": 40}, sample_rate=RATE)
-        voice.trigger()
-        first = voice.process(4410, dtype=np.float64)
-        voice.set_parameters(sigma0_per_s=1.0, **change)  # (a redesign either way)
-        return np.concatenate([first, voice.process(4410, dtype=np.float64)])
-    changed, kept = run({"level_db": -12.0}), run({})
-    assert np.array_equal(changed[:4410], kept[:4410])
-    heard = np.abs(kept) > 1e-3 * np.max(np.abs(kept))
-    heard[:4410] = False
-    gain = changed[heard] / kept[heard]
-    at = np.flatnonzero(heard)
-    steps = round(LEVEL_GLIDE_S * RATE)
-    ramp = 10.0 ** (-12.0 / 20.0 * np.minimum(at - 4410 + 1, steps) / steps)
-    assert np.allclose(gain, ramp, rtol=1e-9)  # from one step below 1 to the new level, then held
-    assert gain[0] > 0.98  # no jump of 12 dB at the change
 
 
 @pytest.mark.parametrize("factor", range(1, 9))

@@ -20,6 +20,11 @@ to the change, so their gains sum to one). Both paths are continuous, so their m
 
 With no event pending the output is the voice's own, sample for sample.
 
+``process(n, out=buf)`` keeps the voice contract (:meth:`barsynth.models.base.Voice.process`):
+the samples go into the caller's float32 or float64 buffer and nothing is allocated, during a
+fade too (the fade's work space is allocated when the wrapper is made and by :meth:`prepare`;
+the copy a fade starts from is made by the event that starts it, not by ``process``).
+
 Examples
 --------
 >>> from barsynth.models import get_model
@@ -40,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from ..checks import check_number
+from .base import check_out
 from .rendering import check_block_size, check_dtype
 
 DEFAULT_FADE_S = 0.010
@@ -64,6 +70,33 @@ class CrossfadingVoice:
         self._restart = False  # the fade is a restart: the new note sounds at once, the old fades out
         self._waiting: list[tuple[str, dict[str, Any]]] = []  # events that arrived during a fade
         self.refused: list[str] = []
+        self._allocate(voice.max_block)
+
+    def _allocate(self, max_block: int) -> None:
+        """The work space of a fade, for pieces of up to ``max_block`` samples."""
+        self.max_block = max_block
+        self._old_block = np.empty(max_block)  # the old voice's samples
+        self._gains = np.empty(max_block)  # the fade's gains
+        self._counts = np.arange(1.0, max_block + 1.0)  # 1, 2, ...: samples into the piece
+        self._mix = np.empty(max_block)  # the mix, in float64, for a float32 buffer
+
+    def prepare(self, sample_rate: float, max_block: int | None = None) -> None:
+        """Prepare the voice for ``sample_rate`` (Hz) and blocks of up to ``max_block`` samples
+        (:meth:`barsynth.models.base.Voice.prepare`: it is reset, so silent) and allocate the
+        fade's work space. A fade under way ends; changes waiting for it are made now (one the
+        voice refuses goes to :attr:`refused`), a trigger waiting for it is dropped. A refused
+        rate changes nothing."""
+        from ..errors import BarsynthError
+
+        self.voice.prepare(sample_rate, max_block)  # may raise: then nothing has changed
+        self._allocate(self.voice.max_block)
+        waiting, self._old, self._done, self._waiting = self._waiting, None, 0, []
+        for kind, values in waiting:
+            if kind == "set":
+                try:
+                    self.voice.set_parameters(**values)
+                except BarsynthError as exc:
+                    self.refused.append(str(exc))
 
     # -- what the wrapped voice has ------------------------------------------------------
     @property
@@ -141,27 +174,53 @@ class CrossfadingVoice:
                 self.refused.append(str(exc))
 
     # -- sound -----------------------------------------------------------------------
-    def process(self, num_samples: int, *, dtype: Any = np.float32) -> np.ndarray:
-        """The next ``num_samples`` samples, float32 unless ``dtype`` says otherwise."""
-        dtype = check_dtype(dtype)
+    def process(self, num_samples: int, *, out: np.ndarray | None = None, dtype: Any = np.float32) -> np.ndarray:
+        """The next ``num_samples`` samples (mono), as :meth:`barsynth.models.base.Voice.process`.
+
+        Without ``out``: a new array, float32 unless ``dtype`` says float64. With ``out`` (a 1-D
+        float32 or float64 array of exactly ``num_samples``, which the caller owns): the samples
+        are written there and ``out`` is returned; nothing is allocated.
+        """
         n = check_block_size(num_samples)
-        out = np.empty(n)
-        start = 0
+        if out is None:
+            kind = check_dtype(dtype)
+            samples = np.empty(n)
+            self._render(samples)
+            return samples.astype(kind, copy=False)
+        check_out(out, n)
+        if out.dtype == np.float64:
+            self._render(out)
+            return out
+        for start in range(0, n, self.max_block):  # float32: mixed in float64, then cast
+            stop = min(n, start + self.max_block)
+            piece = self._mix[:stop - start]
+            self._render(piece)
+            out[start:stop] = piece
+        return out
+
+    def _render(self, out: np.ndarray) -> None:
+        """Write ``out.size`` samples into the float64 array ``out``: the voice's own, or during
+        a fade the mix, in place (the new voice's samples are rendered into ``out``)."""
+        n, start = out.size, 0
         while start < n:
             if self._old is None:
-                out[start:] = self.voice.process(n - start, dtype=np.float64)
-                break
-            count = min(n - start, self._length - self._done)
-            new = self.voice.process(count, dtype=np.float64)
-            old = self._old.process(count, dtype=np.float64)
-            rise = (self._done + 1 + np.arange(count)) / (self._length + 1)
-            if self._restart:  # the new note with its own attack; the old one fades out
-                out[start:start + count] = new + (1.0 - rise) * old
-            else:  # the same sound before and after the change: gains that sum to one
-                out[start:start + count] = old + rise * (new - old)
+                self.voice.process(n - start, out=out[start:])
+                return
+            count = min(n - start, self._length - self._done, self.max_block)
+            new = self.voice.process(count, out=out[start:start + count])
+            old = self._old.process(count, out=self._old_block[:count])
+            rise = np.add(self._counts[:count], self._done, out=self._gains[:count])  # done + 1, done + 2, ...
+            rise /= self._length + 1
+            if self._restart:  # the new note with its own attack; the old one fades out: new + (1 - rise) old
+                np.subtract(1.0, rise, out=rise)
+                rise *= old
+                new += rise
+            else:  # the same sound before and after the change, gains that sum to one: old + rise (new - old)
+                new -= old
+                new *= rise
+                new += old
             self._done += count
             start += count
             if self._done >= self._length:
                 self._old = None
                 self._next_event()
-        return out.astype(dtype, copy=False)
