@@ -673,3 +673,15 @@ def test_a_plain_note_runs_the_static_kernel_and_a_moving_one_the_dynamic():
     plain.trigger()  # once it has the dynamic kernel, a voice keeps it
     plain.process(1000)
     assert not plain._static
+
+
+def test_a_warmed_voice_keeps_the_dynamic_kernel_at_a_new_rate():
+    voice = TwangVoice(sample_rate=48000)
+    voice.warm_up()
+    voice.prepare(44100)
+    voice.trigger()
+    assert not voice._static
+    fresh = TwangVoice(sample_rate=44100)
+    fresh.trigger()
+    assert fresh._static
+    assert np.array_equal(voice.process(5000, dtype=np.float64), fresh.process(5000, dtype=np.float64))

@@ -96,9 +96,11 @@ class TwangVoice(Voice):
         self._bands = K.Bands(np.zeros((4, N_BANDS)), np.zeros((4, N_BANDS)), np.zeros(N_BANDS), np.zeros(N_BANDS),
                               np.zeros((N_BANDS, frame_len + 1)), np.zeros((3, N_BANDS)),
                               np.zeros(N_BANDS, dtype=np.int64))
-        # process compiled for these records (jitstart.compiled_for), each resolved when first
-        # needed: the static kernel (modes None) and the dynamic one
-        self._run_static = self._run_dynamic = None
+        # process compiled for these records' types (jitstart.compiled_for; the same at every
+        # rate, so kept across prepare), each resolved when first needed: the static kernel
+        # (modes None) and the dynamic one
+        if not hasattr(self, "_run_dynamic"):
+            self._run_static = self._run_dynamic = None
 
     def _reset(self) -> None:
         """Silence, every control at its target, and the noise restarted from the seed (fresh
