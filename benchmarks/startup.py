@@ -64,6 +64,35 @@ hour as "before")::
   0.1-0.8 s each; design and process are the largest); allpass fits its all-pass chains
   (Levenberg-Marquardt in Python, ~0.1-0.27 s) on every render.
 
+Twang's static kernel, figures of 2026-11-26 (same machine, load average about 2 from other
+work; medians of 5 first renders, 7 warm ones). "before" is 16323dc, "after" the kern-tw
+branch, run in the same minutes; ``PYTHONPATH`` must be absolute (the children run in a
+temporary folder, so ``PYTHONPATH=src`` would measure the installed barsynth)::
+
+                                       before                 after
+  first render twang --duration 0.5    4.03 s wall, 4.00 CPU  2.12 s wall, 2.11 CPU
+    (one core; range of 5)             (3.90..4.09 s wall)    (2.09..2.14 s wall)
+  first render with vibrato_rate_hz=5  3.97 s wall, 3.71 CPU  3.87 s wall, 3.70 CPU   (3 runs by hand)
+  warm render twang --duration 0.5     0.44 s wall, 0.44 CPU  0.45 s wall, 0.44 CPU
+  peak memory, first render            184.5 MiB              171.4 MiB
+
+  where the first render goes (after; CPU s in one process, numba's compile events,
+  medians of 3): Python, NumPy, numba, the CLI and the model imported 0.25; numba's CPU
+  target 0.14; compiling the static kernel 1.55: process 1.0 (about 0.5 of it LLVM
+  optimising and emitting the module its callees are linked into), _render 0.23,
+  _band_pair 0.19, _band 0.13; designing the note in Python 0.1 ms; rendering, writing
+  and the exit about 0.05. Before, compiling took 3.25 s: process 0.82, design 0.57,
+  _band_pair 0.34, _render 0.30, _follow 0.29, _control 0.28, _cull 0.20, _band 0.17,
+  _end_frame 0.11-0.16, bandpass 0.06, the min/max/int overloads 0.08.
+  taken away: a note that holds still (no vibrato, no slide, no change: every preset)
+  runs the static kernel, compiled without the ramps, the design and the gain ramps
+  (the voice designs the note once in Python, with the same doubles); the frame start
+  and end written into process (as functions, even numba-inlined, they cost ~0.1 s
+  more); min(), max(), int() and array slices written out of the compiled code. A note
+  that moves, or a voice's first change, compiles the dynamic kernel as before (about
+  3.5 s once per install; a few ms from numba's cache; TwangVoice.warm_up() does it
+  ahead of time).
+
 The first-render figures are the kernels' compile times; they are the models' to reduce
 (see the report of the "lighter start and install" work).
 """

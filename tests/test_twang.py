@@ -473,3 +473,103 @@ def test_mode_mask_set_on_a_voice_from_the_model():
     assert np.array_equal(voice.process(4800), soloed.process(4800))
     with pytest.raises(ParameterError, match="mode_mask"):
         voice.mode_mask = [1, 0]
+
+
+# -- the two kernels ---------------------------------------------------------------------
+# A note that holds still runs the static kernel, designed once in Python (kernel.design_note);
+# warm_up() puts a voice on the dynamic kernel, which designs in compiled code. Both must give
+# the very same samples, and a static voice must be able to switch at any frame.
+STILL_CASES = [
+    {},
+    {"length_m": 0.12, "thickness_m": 0.006, "q": 733.0, "shape": 4.7, "free_band_q": 57.0, "level_db": -17.3},
+    {"gain_mapping": "log", "shape": 0.6, "free_bar_gain": 3.3, "noise_cutoff_hz": 17000.0, "material": "steel"},
+    {"short_length_ratio": 0.31, "full_cantilever_gain": 0.2, "vibrato_rate_hz": 3.0, "vibrato_depth_hz": 0.0},
+    {"length_m": 0.05, "thickness_m": 0.02, "youngs_modulus_pa": 4e11, "q": 50.0},  # modes above Nyquist
+]
+
+
+def _still_and_warm(params, rate, mode_mask=None):
+    still = TwangVoice(params, sample_rate=rate, seed=3, mode_mask=mode_mask)
+    warm = TwangVoice(params, sample_rate=rate, seed=3, mode_mask=mode_mask)
+    warm.warm_up()
+    return still, warm
+
+
+@pytest.mark.parametrize("rate", [22050, 44100, 96000])
+@pytest.mark.parametrize("params", STILL_CASES)
+def test_a_still_note_designed_in_python_is_the_compiled_design(params, rate):
+    """design() and _control() as plain Python give the compiled doubles: every record after
+    the first frame, and every sample."""
+    mask = np.ones(18)
+    mask[[1, 8, 15]] = 0.0
+    still, warm = _still_and_warm(params, rate, mask)
+    for voice in (still, warm):
+        voice.trigger()
+    frame = still._setup.frame_len
+    assert np.array_equal(still.process(frame, dtype=np.float64), warm.process(frame, dtype=np.float64))
+    assert still._static and not warm._static  # (the cases hold still: otherwise this compares nothing)
+    for ours, theirs in zip((still._osc, still._bands, still._modes), (warm._osc, warm._bands, warm._modes)):
+        for name, a, b in zip(ours._fields, ours, theirs):
+            assert np.array_equal(a, b), name
+    from barsynth.models.twang.kernel import S
+
+    keep = [i for i in range(len(S)) if i != S.dynamic]  # (see kernel.design_note)
+    assert np.array_equal(still._note.scalars[keep], warm._note.scalars[keep])
+    n = int(0.3 * rate)
+    assert np.array_equal(still.process(n, dtype=np.float64), warm.process(n, dtype=np.float64))
+
+
+@pytest.mark.parametrize("at", [0, 1, 95, 96, 97, 192, 4000])
+@pytest.mark.parametrize("change", ["set", "same", "mask", "warm_up"])
+def test_a_still_note_can_switch_to_the_dynamic_kernel_at_any_frame(at, change):
+    """A change at any point of a still note (a new value, the same value again, a new mode
+    mask, warm_up() itself) gives the samples of a voice that ran the dynamic kernel all along."""
+    rate = 48000  # frames of 96 samples
+    still, warm = _still_and_warm(STILL_CASES[1], rate)
+    heads = []
+    for voice in (still, warm):
+        voice.trigger()
+        heads.append(voice.process(at, dtype=np.float64) if at else np.zeros(0))
+        if change == "set":
+            voice.set_parameters(q=200.0, level_db=-6.0)
+        elif change == "same":
+            voice.set_parameters(q=voice.parameters.q)
+        elif change == "mask":
+            voice.mode_mask = [i % 4 != 1 for i in range(18)]
+        else:
+            voice.warm_up()
+    assert np.array_equal(heads[0], heads[1])
+    assert not still._static
+    assert np.array_equal(still.process(8000, dtype=np.float64), warm.process(8000, dtype=np.float64))
+
+
+def test_a_plain_note_runs_the_static_kernel_and_a_moving_one_the_dynamic():
+    """What a first render compiles: a note that holds still needs only the static kernel (half
+    the compile time); vibrato, slide and changes need the dynamic one."""
+    plain = TwangVoice(sample_rate=48000)
+    plain.trigger()
+    plain.process(1000)
+    assert plain._run_static is not None and plain._run_dynamic is None
+    for params in ({"vibrato_rate_hz": 5.0}, {"slide": True}):
+        moving = TwangVoice(params, sample_rate=48000)
+        moving.trigger()
+        moving.process(1000)
+        assert moving._run_dynamic is not None and moving._run_static is None, params
+    plain.set_parameters(q=150.0)
+    plain.process(1000)
+    assert plain._run_dynamic is not None
+    plain.trigger()  # once it has the dynamic kernel, a voice keeps it
+    plain.process(1000)
+    assert not plain._static
+
+
+def test_a_warmed_voice_keeps_the_dynamic_kernel_at_a_new_rate():
+    voice = TwangVoice(sample_rate=48000)
+    voice.warm_up()
+    voice.prepare(44100)
+    voice.trigger()
+    assert not voice._static
+    fresh = TwangVoice(sample_rate=44100)
+    fresh.trigger()
+    assert fresh._static
+    assert np.array_equal(voice.process(5000, dtype=np.float64), fresh.process(5000, dtype=np.float64))

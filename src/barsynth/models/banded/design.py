@@ -73,6 +73,8 @@ class LoopDesign:
 
 
 def _band_pass(w: float, q: float) -> tuple[float, float, float]:
+    # The twang's band-pass (twang.design.bandpass) is this RBJ section too, but multiplies
+    # by 1 / (1 + alpha) where this divides: other last bits, so the two are not shared.
     alpha = math.sin(w) / (2.0 * q)
     norm = 1.0 + alpha
     return alpha / norm, -2.0 * math.cos(w) / norm, (1.0 - alpha) / norm

@@ -33,17 +33,24 @@ class Controls(NamedTuple):
 class Patch(NamedTuple):
     """The patch's state."""
 
-    scalars: np.ndarray  # the S_* slots below
+    scalars: np.ndarray  # the slots S (below)
     rng: np.ndarray  # the noise generator (dsp.noise)
     bands: np.ndarray  # (2, 6): each vcf~'s complex state, re and im
 
 
-S_TIME = 0  # samples since the trigger (-1: never triggered)
-S_CLOCK = 1  # samples since reset: the free-running LFO
-S_PHASE = 2  # drive phasor phase, [0, 1)
-S_LOWPASS = 3
-S_HP_LAST = 4
-N_SCALARS = 5
+class Scalars(NamedTuple):
+    """The slots of ``Patch.scalars`` (:data:`S`: each name's index, from this one list)."""
+
+    time: int  # samples since the trigger (-1: never triggered)
+    clock: int  # samples since reset: the free-running LFO
+    phase: int  # drive phasor phase, [0, 1)
+    lowpass: int
+    hp_last: int
+
+
+S = Scalars(*range(len(Scalars._fields)))
+"""Each scalar's slot by name (``state[S.phase]``)."""
+N_SCALARS = len(S)
 
 LANES = ("drive", "clamped", "free")  # what process() can trace, in its rows
 
@@ -71,16 +78,16 @@ def process(out, lanes, sample_rate, controls, patch):
         f_hz = next_value(controls.frequency_hz, MULTIPLICATIVE)
         depth = next_value(controls.depth_hz, LINEAR)
         level = OUTPUT_GAIN * next_value(controls.gain, LINEAR)
-        f = f_hz + depth * math.sin(2.0 * math.pi * LFO_HZ * state[S_CLOCK] / sample_rate)
-        state[S_CLOCK] += 1.0
+        f = f_hz + depth * math.sin(2.0 * math.pi * LFO_HZ * state[S.clock] / sample_rate)
+        state[S.clock] += 1.0
         sound = 0.0
         drive = 0.0
         clamped = 0.0
         free = 0.0
-        if state[S_TIME] >= 0.0:
-            c, glide = envelopes(state[S_TIME] / sample_rate)
-            state[S_TIME] += 1.0
-            phase = state[S_PHASE]
+        if state[S.time] >= 0.0:
+            c, glide = envelopes(state[S.time] / sample_rate)
+            state[S.time] += 1.0
+            phase = state[S.phase]
             drive = math.cos(2.0 * math.pi * phase) if anchor else phase
             c2 = c * c
             bank = 0.0
@@ -90,11 +97,11 @@ def process(out, lanes, sample_rate, controls, patch):
             # falling phasor at -(f/4 + 6 E)
             phase -= (0.25 * f + GLIDE_DRIVE_HZ * glide) / sample_rate
             phase -= math.floor(phase)
-            state[S_PHASE] = phase
+            state[S.phase] = phase
             x_rng, u = uniform_noise(x_rng)
-            state[S_LOWPASS] += lp_k * (u * drive * drive * clamped - state[S_LOWPASS])
+            state[S.lowpass] += lp_k * (u * drive * drive * clamped - state[S.lowpass])
             centre = f * (1.0 + GLIDE_BANDS * glide)
-            x_in = state[S_LOWPASS]
+            x_in = state[S.lowpass]
             for b in range(6):
                 fc = centre * _FREE[b]
                 edge = (nyquist - fc) / (NYQUIST_TAPER * nyquist)
@@ -112,9 +119,9 @@ def process(out, lanes, sample_rate, controls, patch):
                 free += new_re * min(1.0, edge)
             sound = free + CLAMPED_MIX * clamped
         # Pd's hip~ at 90 Hz, then x4 and the level
-        node = sound + hp_c * state[S_HP_LAST]
-        out[i] = level * hp_gain * (node - state[S_HP_LAST])
-        state[S_HP_LAST] = node
+        node = sound + hp_c * state[S.hp_last]
+        out[i] = level * hp_gain * (node - state[S.hp_last])
+        state[S.hp_last] = node
         if tracing:
             lanes[0, i] = drive
             lanes[1, i] = clamped

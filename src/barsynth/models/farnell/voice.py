@@ -70,7 +70,7 @@ class FarnellVoice(Voice):
         self._gain.set_current_and_target(level_gain(p))
         self._controls = self._new_controls()
         self._patch.scalars[:] = 0.0
-        self._patch.scalars[K.S_TIME] = -1.0
+        self._patch.scalars[K.S.time] = -1.0
         self._patch.rng[:] = noise_state(self.seed)
         self._patch.bands[:] = 0.0
 
@@ -87,10 +87,10 @@ class FarnellVoice(Voice):
         empty, so a new note is the same whether or not one was ringing. (A ringing note is
         cut: :class:`~barsynth.models.crossfade.CrossfadingVoice` fades it out instead.)"""
         scalars = self._patch.scalars
-        scalars[K.S_TIME] = 0.0
-        scalars[K.S_PHASE] = 0.0
-        scalars[K.S_LOWPASS] = 0.0
-        scalars[K.S_HP_LAST] = 0.0
+        scalars[K.S.time] = 0.0
+        scalars[K.S.phase] = 0.0
+        scalars[K.S.lowpass] = 0.0
+        scalars[K.S.hp_last] = 0.0
         self._patch.bands[:] = 0.0
 
     def _render(self, out: np.ndarray) -> None:

@@ -1,9 +1,10 @@
 """The twang's coefficient design: parameters and sample rate -> its 18 modes and band-passes.
 
 Pure functions, no state (Selfridge et al., AES Convention Paper 10553, 2022, sections 2-3).
-:func:`design` is compiled, because the kernel designs anew at every control frame where a
-control, the vibrato or the slide moves; :func:`design_modes` is the same design for
-``describe``, so what is reported is what sounds.
+:func:`design` is compiled into the dynamic kernel, which designs anew at every control frame
+where a control, the vibrato or the slide moves; as plain Python it designs a note that
+holds still (the static kernel's) and, in :func:`design_modes`, what ``describe`` reports, so
+what is reported is what sounds.
 
 Three groups of six modes, from Euler-Bernoulli physics (:mod:`barsynth.physics`): the
 full-length cantilever (clamped at the finger), the short cantilever at the desk edge
@@ -16,7 +17,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba.extending import register_jitable
 
 from ..base import Mode
 from .table import ROWS, TwangParams, control_vector
@@ -35,9 +36,11 @@ VIBRATO_FADE_RATE_HZ = 0.5  # below this rate the vibrato depth fades to 0 (glid
 MIN_BAND_HZ = 20.0  # free-bar bands fade out from 30 Hz to 20 Hz and are silent below
 REFERENCE_SHORT_GAIN = 0.75  # the paper's short/full ratio, used by the level scale
 
-# Compiled only as part of the kernel (its cache holds them): no wrapper to call them from
-# Python, nor a C one; design_modes runs design's Python function instead.
-_INNER = {"nogil": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+# design and bandpass are plain Python functions that numba compiles as part of the
+# twang's dynamic kernel (its cache holds them), without a C wrapper; Python calls them as
+# they are (design_modes, and the voice's design of a note that holds still).
+JITABLE = {"nogil": True, "no_cfunc_wrapper": True}
+
 
 
 class Modes(NamedTuple):
@@ -62,7 +65,7 @@ def mode_lambdas() -> np.ndarray:
     ).astype(np.float64)
 
 
-@njit(**_INNER)
+@register_jitable(**JITABLE)
 def design(values, rows, lambdas, mode_mask, sample_rate, time_s, lfo_sin, modes):
     """Fill ``modes`` (frequency in Hz, linear gain, decay rate alpha = pi f / Q in 1/s).
 
@@ -177,7 +180,7 @@ def design(values, rows, lambdas, mode_mask, sample_rate, time_s, lfo_sin, modes
     return phasor_hz, norm
 
 
-@njit(**_INNER)
+@register_jitable(**JITABLE)
 def bandpass(centre_hz, band_q, sample_rate, coef, b):
     """Band ``b``'s coefficients into ``coef[:, b]``: (b0 of the first section, a1, a2, b0
     of the second) of two identical RBJ constant-peak band-pass sections (b1 = 0, b2 = -b0).
@@ -186,6 +189,11 @@ def bandpass(centre_hz, band_q, sample_rate, coef, b):
     (pi/4) centre/Q; the first section's input is scaled so white noise keeps its
     power. Scaling at the input keeps both sections' states of order one for any
     centre and Q, so sweeping a band never releases stored energy at a high gain.
+
+    The banded model's loop band-pass (``banded.design._band_pass``) is the same RBJ
+    section, but not shared: it divides by ``1 + alpha`` where this multiplies by its
+    reciprocal, which differs in the last bit for 20-50 % of centres (b0, a1, a2), so
+    either model would change its sounds.
     """
     w0 = 2.0 * math.pi * centre_hz / sample_rate
     alpha = math.sin(w0) / (2.0 * band_q)
@@ -202,7 +210,7 @@ def design_modes(p: TwangParams, *, sample_rate: float) -> list[Mode]:
     (group, frequency in Hz, gain, T60 in s); modes silenced by Nyquist or by a zero group
     gain are left out."""
     modes = new_modes()
-    design.py_func(control_vector(p), ROWS, mode_lambdas(), np.ones(N_MODES), float(sample_rate), 0.0, 0.0, modes)
+    design(control_vector(p), ROWS, mode_lambdas(), np.ones(N_MODES), float(sample_rate), 0.0, 0.0, modes)
     return [Mode(group=GROUPS[i // MODES_PER_GROUP], frequency_hz=float(modes.frequency_hz[i]),
                  gain=float(modes.gain[i]), t60_s=float(math.log(1000.0) / modes.alpha_per_s[i]))
             for i in range(N_MODES) if modes.gain[i] > 0.0]

@@ -51,6 +51,10 @@ class TwangVoice(Voice):
     >>> block = voice.process(256)
     >>> voice.set_parameters(q=300)
     >>> more = voice.process(256)
+
+    A note that holds still (no vibrato, no slide, no change) runs the static kernel, which a
+    first render after an install compiles in half the time; the first change of a voice
+    compiles the dynamic one (see :meth:`warm_up`, to have it ready).
     """
 
     restarts_on_trigger: ClassVar[bool] = True
@@ -75,7 +79,8 @@ class TwangVoice(Voice):
     @mode_mask.setter
     def mode_mask(self, mask: Any) -> None:
         self._mode_mask[:] = check_mode_mask(mask)
-        self._note.scalars[K.S_DYNAMIC] = 1.0  # design again at the next frame; the gains ramp
+        self._note.scalars[K.S.dynamic] = 1.0  # design again at the next frame; the gains ramp
+        self._static = False
 
     def _prepare(self) -> None:
         frame_len = max(1, int(round(self.sample_rate * CONTROL_FRAME_S)))
@@ -86,12 +91,16 @@ class TwangVoice(Voice):
         self._note = K.Note(np.zeros(K.N_SCALARS), noise_state(self.seed), np.zeros(frame_len),
                             np.zeros(2, dtype=np.int64))
         self._modes = new_modes()
-        self._osc = K.Oscillators(np.zeros((2, N_OSC)), np.zeros((2, N_OSC, frame_len + 1)), np.zeros((3, N_OSC)),
-                                  np.zeros(N_OSC, dtype=np.int64))
-        self._run = None  # process compiled for these records, resolved at the first render (jitstart.compiled_for)
-        self._bands = K.Bands(np.zeros((4, N_BANDS)), np.zeros((4, N_BANDS)), np.zeros(N_BANDS),
+        self._osc = K.Oscillators(np.zeros((2, N_OSC)), np.zeros((2, N_OSC)), np.zeros((2, N_OSC, frame_len + 1)),
+                                  np.zeros((3, N_OSC)), np.zeros(N_OSC, dtype=np.int64))
+        self._bands = K.Bands(np.zeros((4, N_BANDS)), np.zeros((4, N_BANDS)), np.zeros(N_BANDS), np.zeros(N_BANDS),
                               np.zeros((N_BANDS, frame_len + 1)), np.zeros((3, N_BANDS)),
                               np.zeros(N_BANDS, dtype=np.int64))
+        # process compiled for these records' types (jitstart.compiled_for; the same at every
+        # rate, so kept across prepare), each resolved when first needed: the static kernel
+        # (modes None) and the dynamic one
+        if not hasattr(self, "_run_dynamic"):
+            self._run_static = self._run_dynamic = None
 
     def _reset(self) -> None:
         """Silence, every control at its target, and the noise restarted from the seed (fresh
@@ -106,33 +115,75 @@ class TwangVoice(Voice):
             for array in record:
                 if array is not self._note.rng:
                     array[...] = 0
+        self._hold_still()
+        self._design_due = False
 
     def _update(self, old: TwangParams) -> None:
         control_vector(self._params, self._controls.target)  # the kernel ramps there at its next frame
+        self._static = False  # the ramps need the dynamic kernel
+
+    def _hold_still(self) -> None:
+        """Run the static kernel if the settled controls keep the trigger's design (no
+        vibrato, no slide: what :func:`~.kernel._follow` checks) and this voice has not
+        got the dynamic kernel yet (:meth:`warm_up`, an earlier change)."""
+        values, rows = self._controls.target, ROWS
+        vibrato = values[rows.vibrato_rate_hz] > 0.0 and values[rows.vibrato_depth_hz] > 0.0
+        self._static = self._run_dynamic is None and not vibrato and not values[rows.slide] > 0.0
+
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the dynamic kernel now, and use it from now on:
+        a parameter change then never waits for a compile, and a trigger designs in compiled
+        code (the static kernel's Python design costs about 0.1 ms a trigger).
+
+        Without it a note that holds still (no vibrato, no slide, no parameter change: a
+        first render's usual case) runs the static kernel, which compiles in half the
+        time, and the first parameter change of a voice compiles the dynamic one (about
+        3.5 s on one core, once per install; loading it from numba's cache takes
+        milliseconds). The samples are the same either way.
+        """
+        if self._run_dynamic is None:
+            self._run_dynamic = compiled_for(K.process, self._scratch, self._setup, self._controls, self._note,
+                                             self._modes, self._osc, self._bands)
+        self._static = False  # exact at any point: see kernel.design_note
 
     def trigger(self) -> None:
         """Twang: restart every phasor at phase 0 with full amplitude. (A ringing note is cut:
         :class:`~barsynth.models.crossfade.CrossfadingVoice` fades it out instead.)"""
         K.settle(self._controls)
         scal = self._note.scalars
-        scal[K.S_PHASE] = 0.0
-        scal[K.S_TIME] = 0.0
-        scal[K.S_FRAME_POS] = 0.0
-        scal[K.S_LFO_PHASE] = 0.0
-        scal[K.S_FORCE] = 1.0
+        scal[K.S.phase] = 0.0
+        scal[K.S.time] = 0.0
+        scal[K.S.frame_pos] = 0.0
+        scal[K.S.lfo_phase] = 0.0
+        scal[K.S.force] = 1.0
         self._osc.z[0] = 1.0
         self._osc.z[1] = 0.0
         self._bands.env[:] = 1.0
         # The new note's filters start empty: state left by the old note (with other
         # coefficients) would otherwise ring out through the new, maybe narrow, bands.
         self._bands.state[:] = 0.0
-        scal[K.S_LOWPASS] = 0.0
-        scal[K.S_X1] = 0.0
-        scal[K.S_X2] = 0.0
+        scal[K.S.lowpass] = 0.0
+        scal[K.S.x1] = 0.0
+        scal[K.S.x2] = 0.0
+        # A note that holds still is designed in Python at its first render (the static
+        # kernel's only design); one that moves designs in the dynamic kernel (warm_up).
+        self._hold_still()
+        self._design_due = self._static
 
     def _render(self, out: np.ndarray) -> None:
-        run = self._run
-        if run is None:  # process's dispatcher would type the five records at every call (~6 us)
-            run = self._run = compiled_for(K.process, out, self._setup, self._controls, self._note, self._modes,
-                                           self._osc, self._bands)
+        # compiled_for: process's dispatcher would type the records at every call (~6 us)
+        if self._static:  # (a parameter change or a new mode mask ends it: _update, mode_mask)
+            if self._design_due:
+                self._design_due = False
+                K.design_note(self._setup, self._controls, self._note, self._modes, self._osc, self._bands)
+            run = self._run_static
+            if run is None:
+                run = self._run_static = compiled_for(K.process, out, self._setup, self._controls, self._note, None,
+                                                      self._osc, self._bands)
+            run(out, self._setup, self._controls, self._note, None, self._osc, self._bands)
+            return
+        run = self._run_dynamic
+        if run is None:
+            run = self._run_dynamic = compiled_for(K.process, out, self._setup, self._controls, self._note,
+                                                   self._modes, self._osc, self._bands)
         run(out, self._setup, self._controls, self._note, self._modes, self._osc, self._bands)
