@@ -184,3 +184,21 @@ def test_the_golden_glide_does_not_click():
     ms = rate // 1000
     steps = np.abs(np.diff(x))
     assert steps[change - 2 * ms:change + 10 * ms].max() <= 1.05 * steps[change - 20 * ms:change].max()
+
+
+def test_a_note_that_has_died_away_leaves_its_filters_at_exactly_zero():
+    """Filter states below kernel.TINY (-600 dB) are set to 0, so a silent voice never computes
+    with subnormal numbers (about 6 times slower); what was heard is not changed by it (the
+    golden sounds)."""
+    from barsynth.models.farnell import kernel
+
+    voice = FarnellVoice(sample_rate=48000)
+    voice.trigger()
+    first = voice.process(48000, dtype=np.float64)
+    assert np.abs(first).max() > 0.1
+    for _ in range(4):
+        voice.process(48000)
+    tail = voice.process(48000, dtype=np.float64)
+    scalars, bands = voice._patch.scalars, voice._patch.bands
+    assert not tail.any()
+    assert scalars[kernel.S.lowpass] == 0.0 and scalars[kernel.S.hp_last] == 0.0 and not bands.any()

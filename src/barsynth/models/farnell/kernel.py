@@ -54,6 +54,11 @@ N_SCALARS = len(S)
 
 LANES = ("drive", "clamped", "free")  # what process() can trace, in its rows
 
+TINY = 1e-30
+"""A filter state smaller than this (600 dB below full scale) is set to 0: once a note has
+died away its filters decay geometrically through tiny and subnormal numbers, whose arithmetic
+made a silent voice about 6 times slower (46-75 ms a second of sound against 8 ms)."""
+
 _RATIOS = np.array(CLAMPED_RATIOS)
 _GAINS = np.array(CLAMPED_GAINS)
 _FREE = np.array(FREE_RATIOS)
@@ -99,7 +104,8 @@ def process(out, lanes, sample_rate, controls, patch):
             phase -= math.floor(phase)
             state[S.phase] = phase
             x_rng, u = uniform_noise(x_rng)
-            state[S.lowpass] += lp_k * (u * drive * drive * clamped - state[S.lowpass])
+            lowpass = state[S.lowpass] + lp_k * (u * drive * drive * clamped - state[S.lowpass])
+            state[S.lowpass] = lowpass if abs(lowpass) >= TINY else 0.0
             centre = f * (1.0 + GLIDE_BANDS * glide)
             x_in = state[S.lowpass]
             for b in range(6):
@@ -114,14 +120,18 @@ def process(out, lanes, sample_rate, controls, patch):
                 re = bands[0, b]
                 im = bands[1, b]
                 new_re = vcf_in * (1.0 - r) * x_in + rc * re - rs * im
-                bands[1, b] = rs * re + rc * im
+                new_im = rs * re + rc * im
+                if abs(new_re) < TINY and abs(new_im) < TINY:
+                    new_re = 0.0
+                    new_im = 0.0
+                bands[1, b] = new_im
                 bands[0, b] = new_re
                 free += new_re * min(1.0, edge)
             sound = free + CLAMPED_MIX * clamped
         # Pd's hip~ at 90 Hz, then x4 and the level
         node = sound + hp_c * state[S.hp_last]
         out[i] = level * hp_gain * (node - state[S.hp_last])
-        state[S.hp_last] = node
+        state[S.hp_last] = node if abs(node) >= TINY else 0.0
         if tracing:
             lanes[0, i] = drive
             lanes[1, i] = clamped

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from ...dsp.noise import noise_state
 from ...dsp.smoothing import SmoothedValue
+from ...jitstart import compiled_for
 from ..base import Voice
 from ..rendering import check_block_size
 from . import kernel as K
@@ -43,6 +44,7 @@ class FarnellVoice(Voice):
     restarts_on_trigger: ClassVar[bool] = True
     uses_seed: ClassVar[bool] = True
     _params: FarnellParams
+    _run: Any = None  # process compiled for the records' types (no rate or setting changes them)
 
     @property
     def parameters(self) -> FarnellParams:
@@ -94,7 +96,11 @@ class FarnellVoice(Voice):
         self._patch.bands[:] = 0.0
 
     def _render(self, out: np.ndarray) -> None:
-        K.process(out, self._no_lanes, self.sample_rate, self._controls, self._patch)
+        run = self._run
+        if run is None:  # numba's dispatcher would type both records at every call
+            run = self._run = compiled_for(K.process, out, self._no_lanes, self.sample_rate, self._controls,
+                                           self._patch)
+        run(out, self._no_lanes, self.sample_rate, self._controls, self._patch)
 
     def trace(self, num_samples: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """The next ``num_samples`` samples (float64, as :meth:`process` would give them) and
