@@ -311,3 +311,11 @@ def test_the_limiter_lets_the_level_back_within_half_a_second_after_a_huge_spike
 
     assert recovery_samples(1e9) <= (module.RELEASE_S + 0.05) * RATE
     assert recovery_samples(10.0) <= (module.RELEASE_S + 0.05) * RATE  # a shallow cut too
+
+
+def test_a_voice_built_for_the_stream_is_warmed_up():
+    """The stream builds its voices warmed up (Voice.warm_up): the twang's first slider change
+    then never compiles its full kernel in the middle of the stream."""
+    model = get_model("twang")
+    voice, _ = Stream.build_voice(model, model.table.resolve(), 48000)
+    assert voice.voice._run_dynamic is not None and not voice.voice._static

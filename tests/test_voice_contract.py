@@ -878,6 +878,22 @@ def test_a_second_trigger_is_no_sharper_than_a_note_and_what_rings(name, excitat
 
 
 @pytest.mark.parametrize("name", MODELS)
+def test_warm_up_changes_no_sample(name):
+    """warm_up() (called by live players before they play) compiles ahead: the samples of a
+    warmed voice, through a change while sounding, are those of one that was not warmed."""
+    runs = []
+    for warm in (False, True):
+        voice = fresh(name, model_settings(name))
+        if warm:
+            voice.warm_up()
+        voice.trigger()
+        head = voice.process(50 * MS, dtype=np.float64)
+        voice.set_parameters(level_db=-12.0)
+        runs.append(np.concatenate([head, voice.process(50 * MS, dtype=np.float64)]))
+    assert np.array_equal(runs[0], runs[1])
+
+
+@pytest.mark.parametrize("name", MODELS)
 def test_release_stops_a_bow_stroke_or_changes_nothing(name):
     cls = voice_class(name)
     for excitation in excitations(name):

@@ -127,6 +127,11 @@ class Voice:
     def release(self) -> None:
         """Let go (a bow stroke slows to rest); a voice that cannot release ignores it."""
 
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) now whatever a change while sounding may need
+        later, so a live player never waits for a compile mid-stream; the samples are the same
+        either way. Most voices compile everything at their first block: nothing to do."""
+
     @property
     def driven_until(self) -> int:
         """The index of the first sample (counted from the voice's reset) from which nothing drives

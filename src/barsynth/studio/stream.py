@@ -190,6 +190,7 @@ class Stream:
     def build_voice(model: Any, resolved: Any, rate: int) -> tuple[CrossfadingVoice, float]:
         """A new cross-fading voice and its gain (the expensive part of a start: run it off the event loop)."""
         voice = model.voice(resolved, sample_rate=rate, seed=None)
+        voice.warm_up()  # a later slider change never compiles in the stream (the twang's full kernel)
         try:
             probe = model.render(resolved, duration_s=GAIN_PROBE_S, sample_rate=rate, normalize=False,
                                  dtype=np.float64)
