@@ -250,17 +250,24 @@ def test_a_retired_waveguide_fades_out_over_fade_s_and_is_then_gone():
     assert np.all(x[left:] == 0.0)  # the new waveguide was never struck
 
 
-def test_the_kernel_unpacks_its_records_in_their_field_order():
-    """process() takes the Loop and the LoopState as plain tuples and unpacks them by position:
-    the names it unpacks must be the records' fields, in order."""
-    import ast
-    import inspect
-
+def test_the_compiled_entry_point_gives_the_dispatchers_samples():
+    """The voice calls process() through its compiled entry point (jitstart.compiled_for),
+    which checks no types: over blocks of changing sizes, a pending force and a held one, it
+    gives exactly what numba's dispatcher (which types every argument) gives."""
+    from barsynth.exciters import ForceQueue
     from barsynth.models.allpass import kernel as K
 
-    body = ast.parse(inspect.getsource(K.process.py_func)).body[0].body
-    unpacked = {node.value.id: [t.id for t in node.targets[0].elts] for node in body
-                if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Tuple)
-                and isinstance(node.value, ast.Name)}
-    assert unpacked["loop"] == list(K.Loop._fields)
-    assert unpacked["state"] == list(K.LoopState._fields)
+    voice = AllpassVoice({"allpass_order": 8}, sample_rate=22050)
+    engine = voice._engine
+    loop, state = engine.loop, K.empty_state(engine.loop)
+    force = ForceQueue()
+    force.add(np.linspace(1.0, 0.0, 300), 0.25)
+    twin = ForceQueue()
+    twin.add(force.pending.copy(), force.held)
+    for size in (1, 17, 256, 1000):
+        out, expected = np.empty(size), np.empty(size)
+        engine.run(out, force)
+        K.process(expected, twin.pending, twin.held, loop, state)
+        twin.advance(size)
+        assert np.array_equal(out, expected)
+    assert np.abs(expected).max() > 0.0

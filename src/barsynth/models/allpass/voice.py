@@ -20,6 +20,7 @@ import numpy as np
 
 from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, scale, start_ramp
 from ...exciters import POSITIONS_ALONG, DrivePoint, ForceQueue, Pluck, Strike, largest_deflection
+from ...jitstart import compiled_for
 from ..base import Mode, Model, Voice
 from ..rendering import check_sample_rate
 from . import kernel as K
@@ -36,6 +37,8 @@ the filters cannot place the strike point much closer (their fit leaves a point 
 pinned end moving at up to 1 % of a wave's amplitude, where the real bar gives nothing), so
 the force the real bar would need there (growing as the point nears the end) is not applied
 to a point that still moves."""
+
+_start_ramp = start_ramp.py_func  # from Python: the same arithmetic, without loading a kernel for it
 
 
 def _reckoned(position: float) -> float:
@@ -62,14 +65,11 @@ class _Engine:
             strike_rows=np.ascontiguousarray(design.injection),
             pickup_rows=np.ascontiguousarray(design.pickup),
         )
-        self.clear()
+        self.state = K.empty_state(self.loop)
+        self._run = None  # process compiled for these records, resolved at the first run (jitstart.compiled_for)
 
     def clear(self) -> None:
-        self._use(K.empty_state(self.loop))
-
-    def _use(self, state: K.LoopState) -> None:
-        self.state = state
-        self._arguments = K.arguments(self.loop, state)
+        K.silence(self.state)
 
     def same_shape(self, other: _Engine) -> bool:
         """Whether ``other``'s state fits this waveguide (then what rings can carry over)."""
@@ -80,11 +80,14 @@ class _Engine:
                 and self.state.buffers.shape == other.state.buffers.shape)
 
     def take_state(self, other: _Engine) -> None:
-        self._use(other.state)
+        self.state = other.state
 
     def run(self, out: np.ndarray, force: ForceQueue) -> None:
         """``out.size`` samples driven by ``force`` (advanced past them)."""
-        K.process(out, force.pending, force.held, *self._arguments)
+        run = self._run
+        if run is None:  # process's dispatcher would type the two records at every call (~2.4 us)
+            run = self._run = compiled_for(K.process, out, force.pending, force.held, self.loop, self.state)
+        run(out, force.pending, force.held, self.loop, self.state)
         force.advance(out.size)
 
 
@@ -142,16 +145,17 @@ class AllpassVoice(Voice):
 
     def _prepare(self) -> None:
         self._engine = self._build()
+        self._fade = max(1, int(round(FADE_S * self.sample_rate)))
+        self._fade_gains = np.arange(self._fade + 1) / self._fade
+        self._part = np.empty(self.max_block)
+        self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
 
     def _reset(self) -> None:
         self._engine.clear()
         self._retired: list[_Retired] = []
         self._force = ForceQueue()
-        self._fade = max(1, int(round(FADE_S * self.sample_rate)))
-        self._fade_gains = np.arange(self._fade + 1) / self._fade
-        self._part = np.empty(self.max_block)
-        self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
-        start_ramp(self._level, MULTIPLICATIVE, self._level_gain(), 0)
+        self._level[:] = 0.0
+        _start_ramp(self._level, MULTIPLICATIVE, self._level_gain(), 0)
 
     def _update(self, old: AllpassParams) -> None:
         """What rings keeps ringing: the same shape carries on with the new coefficients; a new
@@ -160,7 +164,7 @@ class AllpassVoice(Voice):
         engine = self._build()
         level = self._level_gain()
         if level != self._level[TARGET]:
-            start_ramp(self._level, MULTIPLICATIVE, level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
+            _start_ramp(self._level, MULTIPLICATIVE, level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
         if engine.same_shape(self._engine):
             engine.take_state(self._engine)
         else:
