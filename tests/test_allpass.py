@@ -271,3 +271,20 @@ def test_the_compiled_entry_point_gives_the_dispatchers_samples():
         twin.advance(size)
         assert np.array_equal(out, expected)
     assert np.abs(expected).max() > 0.0
+
+
+def test_the_loss_fits_rows_are_each_losss_own_nepers_exactly():
+    """The loss fit evaluates many points at once (_nepers_rows); each row must be, bit for
+    bit, the nepers of the Loss the fit makes of that point (the golden sounds pin the fits)."""
+    from barsynth.models.allpass.loss import MAX_SHELF_NEPERS, Loss, _nepers_rows, _shelf
+
+    rng = np.random.default_rng(5)
+    w = np.sort(rng.uniform(0.01, 3.0, 9))
+    for count in (1, 2, 3):
+        points = rng.normal(0.0, 1.5, (6, 1 + 2 * count))
+        rows = _nepers_rows(points.tolist(), count, np.cos(w))
+        for x, row in zip(points, rows):
+            shelves = tuple(_shelf(0.999 * math.tanh(x[2 + 2 * k]), min(x[1 + 2 * k] ** 2, MAX_SHELF_NEPERS))
+                            for k in range(count))
+            loss = Loss(math.exp(-min(x[0] ** 2, MAX_SHELF_NEPERS)), shelves)
+            assert np.array_equal(row, loss.nepers(w))
