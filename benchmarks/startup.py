@@ -94,16 +94,20 @@ marks = []
 def mark(name):
     marks.append((name, time.perf_counter()))
 import numpy; mark("import numpy")
-import numba; mark("import numba")
 import barsynth.cli as cli; mark("import barsynth.cli (click, ...)")
 try:
-    from barsynth.jitstart import defer_blas_probe
-    defer_blas_probe(); mark("numba arraymath, BLAS probe deferred (jitstart)")
+    from barsynth.jitstart import quick_start
+    quick_start(); mark("import numba, numba arraymath (jitstart.quick_start)")
 except ImportError:
-    pass
+    try:
+        from barsynth.jitstart import defer_blas_probe
+        defer_blas_probe(); mark("import numba, numba arraymath, BLAS probe deferred (jitstart)")
+    except ImportError:
+        pass
 model = cli._model(sys.argv[1]); mark("import the model (its kernels' dispatchers, physics, presets)")
 resolved = cli._resolve(model, None, ())
 seconds = float(sys.argv[2])
+model.voice(resolved, sample_rate=48000.0, seed=0); mark("a first voice: its design (and any kernel it calls)")
 t = time.perf_counter()
 samples = model.render(resolved, duration_s=seconds, sample_rate=48000.0, seed=0)
 first = time.perf_counter() - t
@@ -214,6 +218,9 @@ def main() -> None:
     parser.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
     parser.add_argument("--skip-cold", action="store_true", help="skip (b), the first render after install")
     parser.add_argument("--no-pin", action="store_true", help="do not pin (b) to one core")
+    parser.add_argument("--breakdown", nargs="+", default=["twang"], choices=MODELS, metavar="MODEL",
+                        help="models whose warm render (c) breaks down (default: twang, at --duration 1; "
+                        "others at 0.5)")
     args = parser.parse_args()
     python = args.python
     work = tempfile.mkdtemp(prefix="barsynth-startup-")
@@ -251,8 +258,10 @@ def main() -> None:
 
     print("\n(c) where the time goes: python -X importtime -m barsynth render twang --duration 1")
     importtime_summary(python, work)
-    print("\n(c) breakdown of a warm render twang --duration 1 (medians; in one process unless said):")
-    breakdown(python, work, "twang", 1.0, args.runs)
+    for model in args.breakdown:
+        seconds = 1.0 if model == "twang" else 0.5
+        print(f"\n(c) breakdown of a warm render {model} --duration {seconds:g} (medians; in one process unless said):")
+        breakdown(python, work, model, seconds, args.runs)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
-"""A plain render starts light: no SciPy linear algebra, no matplotlib, no web stack; numba's
-BLAS probe is deferred without breaking kernels that do use BLAS; the program's quick exit
-keeps its output and exit status. (benchmarks/startup.py measures the times.)"""
+"""A plain render starts light: no SciPy linear algebra, no matplotlib, no web stack, no CFFI
+parser; numba's BLAS probe is deferred without breaking kernels that do use BLAS; SciPy and
+CFFI still import afterwards; the program's quick exit keeps its output and exit status.
+(benchmarks/startup.py measures the times.)"""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ import sys
 
 import pytest
 
-HEAVY = ("scipy.linalg", "scipy.signal", "scipy.optimize", "matplotlib", "fastapi", "uvicorn", "websockets")
+HEAVY = ("scipy.linalg", "scipy.signal", "scipy.optimize", "matplotlib", "fastapi", "uvicorn", "websockets",
+         "pycparser")
 
 
 def _imported(stderr: str) -> set[str]:
@@ -62,6 +64,25 @@ assert 'scipy.linalg' in sys.modules  # the real check ran when BLAS was needed
 conv = njit(lambda a, b: np.convolve(a, b))
 assert np.allclose(conv(a, a), np.convolve(a, a))
 assert not defer_blas_probe()  # once only
+print('ok')
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)
+    assert result.stdout.strip() == "ok", result.stderr[-2000:]
+
+
+def test_the_quick_start_leaves_scipy_and_cffi_importable_and_kernels_working():
+    code = """
+import sys
+from barsynth.jitstart import quick_start
+quick_start()
+assert 'numba' in sys.modules and 'numba.np.arraymath' in sys.modules
+assert not {'scipy', 'cffi', 'pycparser'} & set(sys.modules), sorted({'scipy', 'cffi', 'pycparser'} & set(sys.modules))
+from numba import njit
+assert njit(lambda x: x + 1.0)(1.0) == 2.0
+import scipy, cffi
+assert cffi.FFI().sizeof('int') == 4
+from numba.core.typing import cffi_utils
+assert not cffi_utils.SUPPORTED  # numba types no CFFI function in this process
 print('ok')
 """
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)

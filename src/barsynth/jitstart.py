@@ -1,4 +1,4 @@
-"""A quicker start for numba's CPU target: no SciPy import just to ask whether BLAS exists.
+"""A quicker start for numba's CPU target: no SciPy or CFFI imports that barsynth's kernels do not need.
 
 The first call of any numba kernel in a process (even one loaded from numba's on-disk
 cache) loads numba's CPU target, and with it ``numba.np.arraymath``, whose import runs
@@ -13,6 +13,15 @@ and SciPy is one of barsynth's own requirements, so the answer is known: yes.
 still imports SciPy and checks its integer width when it is compiled. If numba's
 internals are not as expected (another version), nothing is changed.
 
+Two more imports are made at numba's start for features barsynth does not use: ``import
+numba`` imports SciPy's top level (about 8 ms) only to check that its version is at least
+1.0 (barsynth requires 1.11), and numba's CPU target builds a ``cffi.FFI()`` (importing
+pycparser and building its lexer: about 40 ms here) to type CFFI functions passed to a
+kernel. :func:`quick_start` (the program calls it before its first kernel) imports numba
+with that version check skipped and loads numba's CFFI typing without CFFI: in that process
+numba does not type CFFI functions (barsynth passes none; ``import cffi`` itself still works).
+A library user's process is left alone unless it calls :func:`quick_start`.
+
 :func:`compiled_for` is the other cost of a kernel call, paid on every call: numba's
 dispatcher types each argument, and it types a NamedTuple record in Python (about 1 us a
 record), where an array or a number takes a few tens of ns in C. A voice whose kernel takes
@@ -24,7 +33,32 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-__all__ = ["compiled_for", "defer_blas_probe"]
+__all__ = ["compiled_for", "defer_blas_probe", "quick_start"]
+
+
+def quick_start() -> None:
+    """Before the program's first kernel: numba imported without its SciPy version check,
+    its BLAS probe deferred (:func:`defer_blas_probe`) and its CFFI typing loaded without CFFI.
+    Each step that comes too late (the module already imported) is skipped."""
+    _without("scipy", "numba")
+    defer_blas_probe()
+    _without("cffi", "numba.core.typing.cffi_utils")
+
+
+def _without(blocked: str, module: str) -> bool:
+    """Import ``module`` while ``import blocked`` raises ImportError (then ``blocked`` imports as
+    usual again); True if it was done, False if either was imported already."""
+    if module in sys.modules or blocked in sys.modules:
+        return False
+    sys.modules[blocked] = None  # type: ignore[assignment] # import machinery: "not available"
+    try:
+        __import__(module)
+    except Exception:  # noqa: BLE001 # pragma: no cover - another numba: it will load as usual later
+        return False
+    finally:
+        if sys.modules.get(blocked, 0) is None:
+            del sys.modules[blocked]
+    return True
 
 
 def defer_blas_probe() -> bool:
