@@ -87,3 +87,47 @@ print('ok')
 """
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)
     assert result.stdout.strip() == "ok", result.stderr[-2000:]
+
+
+def test_kernel_arguments_are_typed_as_numba_types_them():
+    """jitstart.argument_type (compiled_for's, without numba's numpy.ma import) gives
+    numba.typeof's type for every array and record the voices pass, and for odd arrays."""
+    from typing import NamedTuple
+
+    import numpy as np
+    from numba import typeof
+
+    from barsynth.jitstart import argument_type
+    from barsynth.models import get_model, model_names
+
+    class Mixed(NamedTuple):
+        a: np.ndarray
+        n: int
+        x: float
+        flag: bool
+
+    frozen = np.zeros(3)
+    frozen.flags.writeable = False
+    values = [frozen, np.zeros((3, 4), order="F"), np.zeros((4, 4))[:, ::2], np.zeros((2, 2), dtype=[("v", "f8")]),
+              np.zeros(3, dtype=np.int32), np.zeros(()), Mixed(np.zeros(2), 1, 2.0, True), (np.zeros(2), np.ones(2)),
+              (1.0, np.zeros(1, dtype=np.int64)), 3, 0.5, np.float64(0.5), True]
+    for name in model_names():
+        voice = get_model(name).voice(sample_rate=48000.0, seed=0, max_block=64)
+        voice.trigger()
+        voice.process(64)
+        for owner in [voice, *vars(voice).values()]:
+            for value in getattr(owner, "__dict__", {}).values():
+                if type(value) is np.ndarray or (isinstance(value, tuple) and hasattr(value, "_fields")):
+                    values.append(value)
+    assert len(values) > 30
+    typed = 0
+    for value in values:
+        try:
+            expected = typeof(value)
+        except ValueError:  # a record that is no kernel's argument (numba cannot type a member)
+            with pytest.raises(ValueError):
+                argument_type(value)
+            continue
+        assert argument_type(value) == expected, value
+        typed += 1
+    assert typed > 30

@@ -25,7 +25,9 @@ A library user's process is left alone unless it calls :func:`quick_start`.
 :func:`compiled_for` is the other cost of a kernel call, paid on every call: numba's
 dispatcher types each argument, and it types a NamedTuple record in Python (about 1 us a
 record), where an array or a number takes a few tens of ns in C. A voice whose kernel takes
-records resolves the compiled overload once and calls its entry point.
+records resolves the compiled overload once and calls its entry point. It types the
+arguments itself (:func:`argument_type`, numba's types without numba's test for a masked
+array, which imports ``numpy.ma``: about 10 ms of a render that needs it for nothing else).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-__all__ = ["compiled_for", "defer_blas_probe", "quick_start"]
+__all__ = ["argument_type", "compiled_for", "defer_blas_probe", "quick_start"]
 
 
 def quick_start() -> None:
@@ -102,8 +104,22 @@ def compiled_for(dispatcher: Any, *args: Any) -> Any:
     records, an ``out`` as :meth:`~barsynth.models.base.Voice._render` gets it: a writeable
     C-contiguous float64 array), and resolve again when a record's type may change.
     """
-    from numba import typeof
-
-    signature = tuple(typeof(arg) for arg in args)
+    signature = tuple(argument_type(arg) for arg in args)
     dispatcher.compile(signature)
     return dispatcher.overloads[signature].entry_point
+
+
+def argument_type(value: Any) -> Any:
+    """numba's type of ``value`` as a kernel argument (what ``numba.typeof`` gives): a plain
+    ndarray, and a tuple or NamedTuple (of them), are typed here as numba types them, only
+    without its test for a NumPy masked array (``numpy.ma``, imported for that test alone:
+    about 10 ms; a plain ndarray is none); anything else by ``numba.typeof``."""
+    import numpy as np
+    from numba import typeof, types
+    from numba.np.numpy_support import from_dtype, map_layout
+
+    if type(value) is np.ndarray:
+        return types.Array(from_dtype(value.dtype), value.ndim, map_layout(value), readonly=not value.flags.writeable)
+    if isinstance(value, tuple):
+        return types.BaseTuple.from_types([argument_type(item) for item in value], type(value))
+    return typeof(value)

@@ -149,6 +149,7 @@ class AllpassVoice(Voice):
         self._fade_gains = np.arange(self._fade + 1) / self._fade
         self._part = np.empty(self.max_block)
         self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
+        self._scale = None  # smoothing.scale's compiled entry point, resolved at the first render
 
     def _reset(self) -> None:
         self._engine.clear()
@@ -221,7 +222,10 @@ class AllpassVoice(Voice):
         self._engine.run(out, self._force)
         if self._retired:
             self._retired = [r for r in self._retired if r.add_to(out, self._part, self._fade_gains)]
-        scale(out, self._level, MULTIPLICATIVE)
+        run = self._scale
+        if run is None:  # the dispatcher would type the arguments at every call (jitstart.compiled_for)
+            run = self._scale = compiled_for(scale, out, self._level, MULTIPLICATIVE)
+        run(out, self._level, MULTIPLICATIVE)
 
 
 class AllpassModel(Model):
