@@ -90,6 +90,11 @@ try:  # the program (barsynth.entry) keeps OpenBLAS to one thread: so does this 
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 except ImportError:
     pass
+try:  # and it keeps designs on disk
+    from barsynth import designcache
+    designcache.enable()
+except ImportError:
+    pass
 marks = []
 def mark(name):
     marks.append((name, time.perf_counter()))

@@ -22,16 +22,14 @@ own renders do not use it unless they call :func:`enable`.
 
 from __future__ import annotations
 
-import base64
-import hashlib
-import json
 import os
-import platform
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+# (base64, hashlib, json, platform and tempfile are imported where used: the program imports
+# this module at its start, before it knows whether a design will be asked for)
 
 __all__ = ["MAX_FILES", "array_from", "array_record", "cached", "enable", "enabled", "folder"]
 
@@ -74,6 +72,9 @@ def cached(kind: str, inputs: list[Any], sources: tuple[str, ...], compute: Call
         raise ValueError(f"cache kind {kind!r}: letters and digits only")
     if not enabled():
         return compute()
+    import hashlib
+    import json
+
     key = _key(kind, inputs, sources)
     name = f"{kind}-{hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()}.json"
     where = folder()
@@ -92,6 +93,8 @@ def cached(kind: str, inputs: list[Any], sources: tuple[str, ...], compute: Call
 
 def array_record(array) -> dict:
     """A float64 array as a JSON object: its shape and its bytes (little-endian, base64)."""
+    import base64
+
     import numpy as np
 
     data = np.ascontiguousarray(array, dtype="<f8")
@@ -100,6 +103,8 @@ def array_record(array) -> dict:
 
 def array_from(record: dict):
     """The array of :func:`array_record` (a new, writeable, native float64 array)."""
+    import base64
+
     import numpy as np
 
     shape = tuple(int(n) for n in record["shape"])
@@ -115,6 +120,8 @@ def _key(kind: str, inputs: list[Any], sources: tuple[str, ...]) -> dict:
 
 def _arithmetic() -> dict:
     """What else can move a last bit of a design: the versions and the CPU paths."""
+    import platform
+
     import numpy as np
 
     try:
@@ -132,6 +139,7 @@ def _arithmetic() -> dict:
 def _source_digest(sources: tuple[str, ...]) -> str:
     """SHA-256 over the ``.py`` files of the named modules and packages (once a process)."""
     if sources not in _digests:
+        import hashlib
         import importlib.util
 
         digest = hashlib.sha256()
@@ -151,6 +159,9 @@ def _source_digest(sources: tuple[str, ...]) -> str:
 def _write(where: Path, name: str, content: dict, kind: str) -> None:
     """Write ``content`` to ``where / name`` atomically, then keep the newest ``MAX_FILES`` of the
     kind; any failure (a read-only disk, no space) only leaves the design uncached."""
+    import json
+    import tempfile
+
     temporary = None
     try:
         where.mkdir(mode=0o700, parents=True, exist_ok=True)
