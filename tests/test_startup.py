@@ -5,6 +5,7 @@ CFFI still import afterwards; the program's quick exit keeps its output and exit
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -131,3 +132,52 @@ def test_kernel_arguments_are_typed_as_numba_types_them():
         assert argument_type(value) == expected, value
         typed += 1
     assert typed > 30
+
+
+CACHED_MODULE = '''
+import math
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def ring(out, gain):
+    for i in range(out.size):
+        out[i] = gain * math.sin(0.1 * i)
+    return out.sum()
+'''
+
+LIGHT_LOAD = """
+import sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from barsynth.jitstart import quick_start
+quick_start()
+from numba.core.registry import cpu_target
+from cached_kernel import ring
+out = np.empty(50)
+total = ring(out, 2.0)
+assert ring.stats.cache_hits and not ring.stats.cache_misses, ring.stats
+assert 'numba.typed.typeddict' not in sys.modules  # the registries were not loaded for the load
+assert abs(total - 2.0 * sum(np.sin(0.1 * np.arange(50)))) < 1e-9
+from numba import njit
+fresh = njit(lambda n: np.cumsum(np.arange(n) * 0.5)[-1] + math.gamma(4.0) + len([k for k in range(n)]))
+import math
+assert fresh(5) == 5.0 + 6.0 + 5  # a compile in the same process refreshes the target itself
+assert ring(np.empty(3), 0.0) == 0.0
+print('ok')
+"""
+
+
+def test_a_kernel_loads_from_numbas_cache_without_the_registries_and_compiling_still_works(tmp_path):
+    """quick_start lightens numba's cache loads (no target refresh): a cached kernel loads and
+    runs, and a new function compiled afterwards in the same process still compiles."""
+    (tmp_path / "cached_kernel.py").write_text(CACHED_MODULE)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}
+    fill = subprocess.run([sys.executable, "-c", f"import sys; sys.path.insert(0, {str(tmp_path)!r}); "
+                           "import numpy as np; from cached_kernel import ring; ring(np.empty(3), 1.0)"],
+                          env=env, capture_output=True, text=True, timeout=300, check=False)
+    assert fill.returncode == 0, fill.stderr[-2000:]
+    result = subprocess.run([sys.executable, "-c", LIGHT_LOAD, str(tmp_path)], env=env, capture_output=True,
+                            text=True, timeout=300, check=False)
+    assert result.stdout.strip() == "ok", result.stderr[-2000:]

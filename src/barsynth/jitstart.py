@@ -22,6 +22,10 @@ with that version check skipped and loads numba's CFFI typing without CFFI: in t
 numba does not type CFFI functions (barsynth passes none; ``import cffi`` itself still works).
 A library user's process is left alone unless it calls :func:`quick_start`.
 
+The largest part of loading a cached kernel was numba refreshing its whole CPU target first
+(every typing and lowering registry, about 70 ms), which only compiling needs and which a
+compile does by itself: :func:`lighten_cache_loads`.
+
 :func:`compiled_for` is the other cost of a kernel call, paid on every call: numba's
 dispatcher types each argument, and it types a NamedTuple record in Python (about 1 us a
 record), where an array or a number takes a few tens of ns in C. A voice whose kernel takes
@@ -35,16 +39,51 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-__all__ = ["argument_type", "compiled_for", "defer_blas_probe", "quick_start"]
+__all__ = ["argument_type", "compiled_for", "defer_blas_probe", "lighten_cache_loads", "quick_start"]
 
 
 def quick_start() -> None:
     """Before the program's first kernel: numba imported without its SciPy version check,
-    its BLAS probe deferred (:func:`defer_blas_probe`) and its CFFI typing loaded without CFFI.
-    Each step that comes too late (the module already imported) is skipped."""
+    its BLAS probe deferred (:func:`defer_blas_probe`), its CFFI typing loaded without CFFI,
+    and its cache loads lightened (:func:`lighten_cache_loads`). Each step that comes too late
+    (the module already imported) or finds numba other than expected is skipped."""
     _without("scipy", "numba")
     defer_blas_probe()
     _without("cffi", "numba.core.typing.cffi_utils")
+    lighten_cache_loads()
+
+
+def lighten_cache_loads() -> bool:
+    """Load numba's cached kernels without refreshing its CPU target first; True if done.
+
+    numba's ``Cache.load_overload`` refreshes the target (imports and installs every typing
+    and lowering registry: about 70 ms) before it reads a cached kernel, though running
+    compiled code needs only numba's runtime (NRT: its C symbols and atomic functions); a
+    compile refreshes the target itself (``CompilerBase.__init__``) and so does numba's
+    lowering when it meets a function it does not know. Here a load initialises the NRT
+    only. Not done (False) if numba's code is not as expected."""
+    try:
+        from numba.core import caching, compiler
+        from numba.core.runtime import nrt
+    except ImportError:  # pragma: no cover - numba is a requirement
+        return False
+    real = getattr(caching.Cache, "load_overload", None)
+    load_code = getattr(real, "__code__", None)
+    compile_code = getattr(getattr(compiler.CompilerBase, "__init__", None), "__code__", None)
+    if (getattr(real, "lightened", False) or load_code is None or compile_code is None
+            or not {"refresh", "_load_overload", "_guard_against_spurious_io_errors"} <= set(load_code.co_names)
+            or "refresh" not in compile_code.co_names or not callable(getattr(nrt.rtsys, "initialize", None))):
+        return False
+
+    def load_overload(self: Any, sig: Any, target_context: Any) -> Any:
+        nrt.rtsys.initialize(target_context)  # what loaded code needs of the target
+        with self._guard_against_spurious_io_errors():
+            return self._load_overload(sig, target_context)
+
+    load_overload.lightened = True  # type: ignore[attr-defined]
+    load_overload.__doc__ = real.__doc__
+    caching.Cache.load_overload = load_overload
+    return True
 
 
 def _without(blocked: str, module: str) -> bool:
