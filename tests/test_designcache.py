@@ -153,3 +153,10 @@ def test_the_program_stores_a_design_and_renders_the_same_samples_from_it(tmp_pa
         outputs.append((tmp_path / name).read_bytes())
     assert len(list((tmp_path / "cache" / "designs").glob("allpass-*.json"))) == 1
     assert outputs[0] == outputs[1]
+
+
+def test_a_key_that_cannot_be_made_leaves_the_design_uncached(cache):
+    counter = Counter()
+    assert get(counter, sources=("barsynth.no_such_module",))["value"] == 0.1 / 3.0
+    get(counter, sources=("barsynth.no_such_module",))
+    assert counter.calls == 2 and not cache.exists()

@@ -38,7 +38,7 @@ FORMAT = 1
 MAX_FILES = 256
 """Designs of one kind kept on disk (the oldest beyond this are deleted)."""
 
-_state = {"enabled": False}
+_state: dict[str, Any] = {"enabled": False}
 _digests: dict[tuple[str, ...], str] = {}
 
 
@@ -75,19 +75,25 @@ def cached(kind: str, inputs: list[Any], sources: tuple[str, ...], compute: Call
     import hashlib
     import json
 
-    key = _key(kind, inputs, sources)
-    name = f"{kind}-{hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()}.json"
-    where = folder()
-    path = where / name
     try:
-        with open(path, encoding="utf-8") as file:
+        key = _key(kind, inputs, sources)
+        name = f"{kind}-{hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()}.json"
+        where = folder()
+    except Exception:  # noqa: BLE001 - no key to be sure of (a source not found...): not cached
+        return compute()
+    try:
+        with open(where / name, encoding="utf-8") as file:
             stored = json.load(file)
         if stored.get("format") == FORMAT and stored.get("key") == key:
             return from_record(stored["record"])
     except Exception:  # noqa: BLE001 - missing, unreadable, corrupt or malformed: computed anew
         pass
     result = compute()
-    _write(where, name, {"format": FORMAT, "key": key, "record": to_record(result)}, kind)
+    try:
+        content = {"format": FORMAT, "key": key, "record": to_record(result)}
+    except Exception:  # noqa: BLE001 # pragma: no cover - a result the record cannot hold: not stored
+        return result
+    _write(where, name, content, kind)
     return result
 
 
@@ -119,7 +125,13 @@ def _key(kind: str, inputs: list[Any], sources: tuple[str, ...]) -> dict:
 
 
 def _arithmetic() -> dict:
-    """What else can move a last bit of a design: the versions and the CPU paths."""
+    """What else can move a last bit of a design: the versions and the CPU paths (once a process)."""
+    if "arithmetic" not in _state:
+        _state["arithmetic"] = _versions_and_cpu()
+    return _state["arithmetic"]
+
+
+def _versions_and_cpu() -> dict:
     import platform
 
     import numpy as np
