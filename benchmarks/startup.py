@@ -11,8 +11,9 @@ one warm-up run. It reports
 
 (a) warm renders: ``render twang --duration 1`` and every model at ``--duration 0.5``,
     numba's on-disk cache filled by the warm-up run;
-(b) the first render after an install: ``NUMBA_CACHE_DIR`` pointed at a new empty folder
-    for each run (the kernels use ``cache=True``), pinned to one core (``--no-pin``: not);
+(b) the first render after an install: ``NUMBA_CACHE_DIR`` (the kernels use ``cache=True``)
+    and ``BARSYNTH_CACHE_DIR`` (the program's stored designs) pointed at a new empty folder
+    for each run, pinned to one core (``--no-pin``: not);
 (c) where the time goes: the top imports of ``python -X importtime`` and a breakdown
     measured inside one process: Python's start, importing NumPy and numba, the CLI and
     the model, loading the cached kernels (the first call, minus a second call's pure
@@ -93,6 +94,45 @@ temporary folder, so ``PYTHONPATH=src`` would measure the installed barsynth)::
   3.5 s once per install; a few ms from numba's cache; TwangVoice.warm_up() does it
   ahead of time).
 
+Figures of 2026-11-26 (the same VM, quieter: wall within 0.01 s of CPU for warm renders;
+medians of 9 whole processes, 2 for first renders; the same versions). "before" is commit
+16323dc, "after" the kern-ba branch (kernel records, the quick start, stored designs),
+measured in the same ten minutes; allpass's warm render reads its design stored by the
+warm-up run, its first render fits it (``BARSYNTH_CACHE_DIR`` empty too)::
+
+                                       before                 after
+  warm render twang --duration 1       0.43 s wall, 0.43 CPU  0.33 s wall, 0.33 CPU
+  warm render --duration 0.5, wall s (CPU within 0.005 s):
+      twang / farnell / banded         0.44 / 0.43 / 0.44     0.32 / 0.33 / 0.34
+      allpass / fd                     0.59 / 0.50            0.34 / 0.40
+  first render after install, CPU s (one core):
+      twang / farnell / banded         3.90 / 1.16 / 1.34     3.68 / 1.12 / 1.26
+      allpass / fd                     1.88 / 2.57            1.63 / 2.44
+  peak memory (max RSS), MiB, warm: 144.6-149.0 -> 134.7-136.4 (every model)
+
+  where a warm render goes (after; in-process medians, ms):
+      twang --duration 1: Python start 11, import NumPy 67, barsynth.cli 11, import numba and
+      numba.np.arraymath (jitstart.quick_start) 173, the model module 16, numba's runtime (NRT,
+      compiled at every start: ~18) + loading the cached kernel 31, rendering 1 s 2.5, writing
+      the WAV 8. Whole: 321 ms.
+      fd --duration 0.5: as twang, the model module 23, NRT + kernel 26, rendering 0.5 s 80
+      (the kernel itself: 4 scheme steps a sample over 100 nodes and a 129-tap decimation FIR;
+      fd's design is 3 ms, and a second render in one process is the same 80 ms: nothing is
+      designed twice, one eigvalsh). Whole: 406 ms.
+      allpass --duration 0.5: as twang, the stored design 1.6 (fitting it: 109 ms CPU, was
+      141), NRT + 4 kernels 31, rendering 2. Whole: 333 ms.
+  taken away this round (all models unless said): numba's cache load refreshing its whole
+  CPU target, every typing and lowering registry (~70 ms; a compile refreshes by itself:
+  jitstart.lighten_cache_loads; with the imports below, ~11 MiB of peak memory); cffi.FFI() in numba's CFFI typing (pycparser and its
+  lexer, ~20-40 ms); numba's import of SciPy's top level for a version check (~8 ms);
+  numpy.ma, imported by numba.typeof for arrays (~10 ms: compiled_for types arguments
+  itself; farnell's kernel now too, through compiled_for); allpass:
+  its design fitted on every render (now stored on disk by the program, barsynth.designcache;
+  the fit itself 23 % faster, bit for bit: the loss fits' Jacobians in one NumPy call) and
+  start_ramp loaded as a kernel of its own (banded too).
+  still there: import numba (~170 ms) and NumPy (~65 ms), about 80 % of a warm render;
+  twang's first render (numba compiling its kernel).
+
 The first-render figures are the kernels' compile times; they are the models' to reduce
 (see the report of the "lighter start and install" work).
 """
@@ -119,20 +159,29 @@ try:  # the program (barsynth.entry) keeps OpenBLAS to one thread: so does this 
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 except ImportError:
     pass
+try:  # and it keeps designs on disk
+    from barsynth import designcache
+    designcache.enable()
+except ImportError:
+    pass
 marks = []
 def mark(name):
     marks.append((name, time.perf_counter()))
 import numpy; mark("import numpy")
-import numba; mark("import numba")
 import barsynth.cli as cli; mark("import barsynth.cli (click, ...)")
 try:
-    from barsynth.jitstart import defer_blas_probe
-    defer_blas_probe(); mark("numba arraymath, BLAS probe deferred (jitstart)")
+    from barsynth.jitstart import quick_start
+    quick_start(); mark("import numba, numba arraymath (jitstart.quick_start)")
 except ImportError:
-    pass
+    try:
+        from barsynth.jitstart import defer_blas_probe
+        defer_blas_probe(); mark("import numba, numba arraymath, BLAS probe deferred (jitstart)")
+    except ImportError:
+        pass
 model = cli._model(sys.argv[1]); mark("import the model (its kernels' dispatchers, physics, presets)")
 resolved = cli._resolve(model, None, ())
 seconds = float(sys.argv[2])
+model.voice(resolved, sample_rate=48000.0, seed=0); mark("a first voice: its design (and any kernel it calls)")
 t = time.perf_counter()
 samples = model.render(resolved, duration_s=seconds, sample_rate=48000.0, seed=0)
 first = time.perf_counter() - t
@@ -156,8 +205,9 @@ print("loaded:", " ".join(m for m in ("scipy", "scipy.linalg", "matplotlib", "fa
 
 def _env(cache_dir: str | None = None) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    if cache_dir is not None:
+    if cache_dir is not None:  # a fresh install: no kernel compiled, no design stored
         env["NUMBA_CACHE_DIR"] = cache_dir
+        env["BARSYNTH_CACHE_DIR"] = os.path.join(cache_dir, "barsynth")
     return env
 
 
@@ -243,6 +293,9 @@ def main() -> None:
     parser.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
     parser.add_argument("--skip-cold", action="store_true", help="skip (b), the first render after install")
     parser.add_argument("--no-pin", action="store_true", help="do not pin (b) to one core")
+    parser.add_argument("--breakdown", nargs="+", default=["twang"], choices=MODELS, metavar="MODEL",
+                        help="models whose warm render (c) breaks down (default: twang, at --duration 1; "
+                        "others at 0.5)")
     args = parser.parse_args()
     python = args.python
     work = tempfile.mkdtemp(prefix="barsynth-startup-")
@@ -280,8 +333,10 @@ def main() -> None:
 
     print("\n(c) where the time goes: python -X importtime -m barsynth render twang --duration 1")
     importtime_summary(python, work)
-    print("\n(c) breakdown of a warm render twang --duration 1 (medians; in one process unless said):")
-    breakdown(python, work, "twang", 1.0, args.runs)
+    for model in args.breakdown:
+        seconds = 1.0 if model == "twang" else 0.5
+        print(f"\n(c) breakdown of a warm render {model} --duration {seconds:g} (medians; in one process unless said):")
+        breakdown(python, work, model, seconds, args.runs)
 
 
 if __name__ == "__main__":

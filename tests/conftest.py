@@ -72,6 +72,19 @@ def tone(frequency_hz: float, rate: int = 22050, seconds: float = 0.4) -> np.nda
     return 0.5 * np.sin(2 * np.pi * frequency_hz * t) * np.exp(-4 * t)
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _design_cache_of_the_session(tmp_path_factory):
+    """The program keeps designs on disk (barsynth.designcache): the programs the suite runs
+    use a folder of the session's, never the user's cache."""
+    old = os.environ.get("BARSYNTH_CACHE_DIR")
+    os.environ["BARSYNTH_CACHE_DIR"] = str(tmp_path_factory.mktemp("design-cache"))
+    yield
+    if old is None:
+        os.environ.pop("BARSYNTH_CACHE_DIR", None)
+    else:
+        os.environ["BARSYNTH_CACHE_DIR"] = old
+
+
 @pytest.fixture
 def listening_config(tmp_path):
     """A listening test with 2 MUSHRA pages and 2 A/B pairs; returns the TOML path."""

@@ -223,17 +223,41 @@ def test_a_retired_waveguide_fades_out_over_fade_s_and_is_then_gone():
     assert np.all(x[left:] == 0.0)  # the new waveguide was never struck
 
 
-def test_the_kernel_unpacks_its_records_in_their_field_order():
-    """process() takes the Loop and the LoopState as plain tuples and unpacks them by position:
-    the names it unpacks must be the records' fields, in order."""
-    import ast
-    import inspect
-
+def test_the_compiled_entry_point_gives_the_dispatchers_samples():
+    """The voice calls process() through its compiled entry point (jitstart.compiled_for),
+    which checks no types: over blocks of changing sizes, a pending force and a held one, it
+    gives exactly what numba's dispatcher (which types every argument) gives."""
+    from barsynth.exciters import ForceQueue
     from barsynth.models.allpass import kernel as K
 
-    body = ast.parse(inspect.getsource(K.process.py_func)).body[0].body
-    unpacked = {node.value.id: [t.id for t in node.targets[0].elts] for node in body
-                if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Tuple)
-                and isinstance(node.value, ast.Name)}
-    assert unpacked["loop"] == list(K.Loop._fields)
-    assert unpacked["state"] == list(K.LoopState._fields)
+    voice = AllpassVoice({"allpass_order": 8}, sample_rate=22050)
+    engine = voice._engine
+    loop, state = engine.loop, K.empty_state(engine.loop)
+    force = ForceQueue()
+    force.add(np.linspace(1.0, 0.0, 300), 0.25)
+    twin = ForceQueue()
+    twin.add(force.pending.copy(), force.held)
+    for size in (1, 17, 256, 1000):
+        out, expected = np.empty(size), np.empty(size)
+        engine.run(out, force)
+        K.process(expected, twin.pending, twin.held, loop, state)
+        twin.advance(size)
+        assert np.array_equal(out, expected)
+    assert np.abs(expected).max() > 0.0
+
+
+def test_the_loss_fits_rows_are_each_losss_own_nepers_exactly():
+    """The loss fit evaluates many points at once (_nepers_rows); each row must be, bit for
+    bit, the nepers of the Loss the fit makes of that point (the golden sounds pin the fits)."""
+    from barsynth.models.allpass.loss import MAX_SHELF_NEPERS, Loss, _nepers_rows, _shelf
+
+    rng = np.random.default_rng(5)
+    w = np.sort(rng.uniform(0.01, 3.0, 9))
+    for count in (1, 2, 3):
+        points = rng.normal(0.0, 1.5, (6, 1 + 2 * count))
+        rows = _nepers_rows(points.tolist(), count, np.cos(w))
+        for x, row in zip(points, rows):
+            shelves = tuple(_shelf(0.999 * math.tanh(x[2 + 2 * k]), min(x[1 + 2 * k] ** 2, MAX_SHELF_NEPERS))
+                            for k in range(count))
+            loss = Loss(math.exp(-min(x[0] ** 2, MAX_SHELF_NEPERS)), shelves)
+            assert np.array_equal(row, loss.nepers(w))

@@ -216,6 +216,9 @@ class ScriptedVoice:
         self.sample_rate = float(RATE)
         self.parameters = get_model("banded").table.resolve({"frequency_hz": 123.0})
 
+    def warm_up(self) -> None:
+        """Nothing to compile ahead (the stream warms every voice it builds)."""
+
     def process(self, n: int, dtype=np.float64) -> np.ndarray:
         k = self.n + np.arange(n)
         x = 0.0 * k if self.silent else 0.5 * np.sin(2 * np.pi * 440.0 * k / RATE)

@@ -329,10 +329,10 @@ class _ModelCommand(click.Command):
 
 
 def _model(name: str):
-    from .jitstart import defer_blas_probe
+    from .jitstart import quick_start
     from .models import get_model
 
-    defer_blas_probe()  # before the first kernel runs: spares a SciPy import (see jitstart)
+    quick_start()  # before the first kernel runs: spares SciPy and CFFI imports (see jitstart)
     return get_model(name)
 
 

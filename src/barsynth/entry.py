@@ -5,6 +5,8 @@ with a quicker start and a quicker end.
   commands do no linear algebra big enough to gain from them, so unless the user set
   ``OPENBLAS_NUM_THREADS`` it is set to 1 before NumPy loads (tens of ms, more on big
   machines).
+* Designs that take long to fit (the all-pass waveguide's) are kept on disk between runs
+  (:mod:`barsynth.designcache`: ``~/.cache/barsynth``, or ``$BARSYNTH_CACHE_DIR``; empty: off).
 * When a command that loaded numba has finished (its files written and closed), the
   interpreter's tear-down (a garbage collection over numba's many objects and the
   clearing of some 600 modules, about 0.2 s after a render) is skipped: the ``atexit``
@@ -27,7 +29,10 @@ __all__ = ["run"]
 def run() -> None:
     """Run the command line and end the process with its exit status."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    from . import designcache
     from .cli import main
+
+    designcache.enable()
 
     try:
         main()

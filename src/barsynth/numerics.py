@@ -7,7 +7,8 @@ estimation of nonlinear parameters", J. SIAM 11 (1963) (the damping scaled by th
 ``J^T J``, so it does not depend on the parameters' units); the damping's update follows
 K. Madsen, H. B. Nielsen and O. Tingleff, *Methods for Non-Linear Least Squares Problems*
 (DTU, 2004), sec. 3.2, with fixed factors. :func:`numeric_jacobian` adds forward-difference
-derivatives to a residual that has none.
+derivatives to a residual that has none (:func:`numeric_jacobian_rows` to one that takes many
+points at once).
 
 Why not :func:`scipy.optimize.least_squares` (``method="lm"``, MINPACK's ``lmder``)? Measured
 on the all-pass waveguide's design (16 designs: four boundary conditions, orders 8 and 24, two
@@ -93,5 +94,24 @@ def numeric_jacobian(residual: Residual) -> ResidualAndJacobian:
             dx = x.copy()
             dx[i] += h
             jac[:, i] = (residual(dx) - r) / h
+        return r, jac
+    return fun
+
+
+def numeric_jacobian_rows(residuals: Residual) -> ResidualAndJacobian:
+    """As :func:`numeric_jacobian`, for a residual that takes many points at once:
+    ``residuals(xs)`` maps points (rows of ``xs``, shape (k, n)) to their residuals (rows,
+    shape (k, m)). The point and its ``n`` steps go in one call (one NumPy operation on
+    ``n + 1`` rows instead of ``n + 1`` on one), with the same steps and differences, so a
+    ``residuals`` that computes each row as the one-point residual would gives the very same
+    ``(r, J)``."""
+    def fun(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        steps = np.array([DIFFERENCE_STEP * max(1.0, abs(x[i])) for i in range(x.size)])
+        points = np.repeat(x[None, :], x.size + 1, axis=0)
+        for i in range(x.size):
+            points[1 + i, i] += steps[i]
+        rows = residuals(points)
+        r = rows[0].copy()
+        jac = np.ascontiguousarray(((rows[1:] - r) / steps[:, None]).T)
         return r, jac
     return fun

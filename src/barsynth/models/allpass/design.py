@@ -158,8 +158,24 @@ def allpass_design(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: 
                    float(strike_position), float(pickup_position))
 
 
+SOURCES = ("barsynth.models.allpass", "barsynth.physics", "barsynth.numerics")
+"""The code a design comes from (the on-disk cache's key covers it: :mod:`barsynth.designcache`)."""
+
+
 @lru_cache(maxsize=32)
 def _design(e: float, rho: float, length: float, thickness: float, width: float, bc: str, order: int,
+            q: float, rate: float, strike: float, pickup: float) -> AllpassDesign:
+    """The design (kept in memory, and on disk for the program: :mod:`barsynth.designcache`)."""
+    from ... import designcache
+
+    inputs = [*(float.hex(v) for v in (e, rho, length, thickness, width)), bc, order,
+              *(float.hex(v) for v in (q, rate, strike, pickup))]
+    return designcache.cached("allpass", inputs, SOURCES,
+                              lambda: _fitted(e, rho, length, thickness, width, bc, order, q, rate, strike, pickup),
+                              _record, _from_record)
+
+
+def _fitted(e: float, rho: float, length: float, thickness: float, width: float, bc: str, order: int,
             q: float, rate: float, strike: float, pickup: float) -> AllpassDesign:
     from ...physics import bar_frequencies, bending_wave_constant
 
@@ -249,6 +265,52 @@ def _report(filters, injection, pickup, strike_at_a, pickup_at_a, bar, w_all, co
         modes.append(ModeFit(n, f_phys, float(wk * to_hz), float(1200 * math.log2(wk * to_hz / f_phys)),
                              q * math.log(1000.0) / (math.pi * f_phys), float(t), float(g), n <= count))
     return tuple(modes), tuple(spurious)
+
+
+def _record(design: AllpassDesign) -> dict:
+    """``design`` as a JSON object, every float exact (:func:`_from_record` reads it back)."""
+    from ...designcache import array_record
+
+    h = float.hex
+    filters = [{"name": f.name, "delay": int(f.delay), "sign": h(f.sign),
+                "poles": [[h(p.real), h(p.imag)] for p in f.poles], "sections": array_record(f.sections),
+                "loss": None if f.loss is None else {"gain": h(f.loss.gain),
+                                                     "shelves": [[h(b), h(c)] for b, c in f.loss.shelves]}}
+               for f in design.filters]
+    modes = [[int(m.number), *(h(v) for v in (m.physics_hz, m.model_hz, m.cents, m.target_t60_s, m.model_t60_s,
+                                              m.gain)), bool(m.fitted)] for m in design.modes]
+    return {"sample_rate": h(design.sample_rate), "bc": design.bc, "band_hz": [h(v) for v in design.band_hz],
+            "strike_at_a": bool(design.strike_at_a), "pickup_at_a": bool(design.pickup_at_a), "filters": filters,
+            "injection": array_record(design.injection), "pickup": array_record(design.pickup), "modes": modes,
+            "spurious": [[h(v) for v in s] for s in design.spurious]}
+
+
+def _from_record(record: dict) -> AllpassDesign:
+    """The :class:`AllpassDesign` of :func:`_record` (raises on a malformed record)."""
+    from ...designcache import array_from
+
+    x = float.fromhex
+
+    def rows(data: dict) -> np.ndarray:
+        array = array_from(data)
+        if array.ndim != 2 or array.shape[1] != 5:
+            raise ValueError(f"sections of shape {array.shape}")
+        return array
+
+    def loss(data: dict | None) -> Loss | None:
+        return None if data is None else Loss(x(data["gain"]), tuple((x(b), x(c)) for b, c in data["shelves"]))
+
+    filters = tuple(Filter(str(f["name"]), int(f["delay"]), x(f["sign"]),
+                           tuple(complex(x(re), x(im)) for re, im in f["poles"]), rows(f["sections"]), loss(f["loss"]))
+                    for f in record["filters"])
+    if [f.name for f in filters] != ["end0", "right", "endL", "left"]:
+        raise ValueError("not the loop's four filters")
+    modes = tuple(ModeFit(int(m[0]), *(x(v) for v in m[1:7]), bool(m[7])) for m in record["modes"])
+    low, high = (x(v) for v in record["band_hz"])
+    return AllpassDesign(x(record["sample_rate"]), str(record["bc"]), (low, high),
+                         bool(record["strike_at_a"]), bool(record["pickup_at_a"]), filters,
+                         rows(record["injection"]), rows(record["pickup"]), modes,
+                         tuple(tuple(x(v) for v in s) for s in record["spurious"]))
 
 
 def design_for(p: AllpassParams, sample_rate: float) -> AllpassDesign:

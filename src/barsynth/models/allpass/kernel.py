@@ -17,9 +17,9 @@ Per sample the loop runs from ``anchor``, a filter with a delay of at least one 
 output depends only on the past), round to the filter before it; each filter writes its input
 into its delay line, reads ``delay`` samples back and runs its rows. The coefficients travel as
 one :class:`Loop`, every state as one :class:`LoopState` owned by the caller, so blocks of any
-size give the same samples as one long block. :func:`process` takes both as plain tuples
-(``tuple(record)``, unpacked there in the records' field order): numba types a plain tuple in
-C but a NamedTuple in Python, 2.4 us more a call (measured), a tenth of a 256-sample block.
+size give the same samples as one long block. numba's dispatcher would type the two records in
+Python at every call (2.4 us more than plain tuples, measured: a tenth of a 256-sample block),
+so the voice calls the compiled overload's entry point (:func:`barsynth.jitstart.compiled_for`).
 """
 
 from __future__ import annotations
@@ -57,11 +57,6 @@ class LoopState(NamedTuple):
     outputs: np.ndarray  # (4,): each filter's output in the present sample (scratch)
 
 
-def arguments(loop: Loop, state: LoopState) -> tuple[tuple, tuple]:
-    """``loop`` and ``state`` as :func:`process` takes them."""
-    return tuple(loop), tuple(state)
-
-
 @njit(cache=True, inline="always")
 def _cascade(rows, states, lo, hi, x):  # pragma: no cover - compiled
     for r in range(lo, hi):
@@ -74,12 +69,13 @@ def _cascade(rows, states, lo, hi, x):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
 def process(out, pending, held, loop, state):  # pragma: no cover - compiled
-    """Run the waveguide (``loop``: a :class:`Loop`, ``state``: a :class:`LoopState`, each as a
-    plain tuple) for ``out.size`` samples driven by a force (N): ``pending[t]`` for the first
-    ``pending.size`` samples, then ``held``; velocity at the pick-up (m/s)."""
-    rows, first, delays, signs, inject, pick, anchor, strike_rows, pickup_rows = loop
-    buffers, states, position, strike_states, pickup_states, outputs = state
-    y = outputs
+    """Run the waveguide (``loop``: a :class:`Loop`, ``state``: a :class:`LoopState`) for
+    ``out.size`` samples driven by a force (N): ``pending[t]`` for the first ``pending.size``
+    samples, then ``held``; velocity at the pick-up (m/s)."""
+    rows, first, delays, signs, inject, pick = loop.rows, loop.first, loop.delays, loop.signs, loop.inject, loop.pick
+    anchor, strike_rows, pickup_rows = loop.anchor, loop.strike_rows, loop.pickup_rows
+    buffers, states, position, y = state.buffers, state.states, state.position, state.outputs
+    strike_states, pickup_states = state.strike_states, state.pickup_states
     mask = buffers.shape[1] - 1
     pos = position[0]
     n_pending = min(out.size, pending.size)
@@ -109,3 +105,9 @@ def empty_state(loop: Loop) -> LoopState:
     return LoopState(np.zeros((N_FILTERS, size)), np.zeros((loop.rows.shape[0], 2)), np.zeros(1, dtype=np.int64),
                      np.zeros((loop.strike_rows.shape[0], 2)), np.zeros((loop.pickup_rows.shape[0], 2)),
                      np.zeros(N_FILTERS))
+
+
+def silence(state: LoopState) -> None:
+    """Empty ``state`` in place, as :func:`empty_state` makes it."""
+    for array in state:
+        array[...] = 0

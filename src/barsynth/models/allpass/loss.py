@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...numerics import levenberg_marquardt, numeric_jacobian
+from ...numerics import levenberg_marquardt, numeric_jacobian_rows
 
 MAX_SHELF_NEPERS = 10.0  # deepest loss of one shelf (at Nyquist) or of the gain
 SHELF_POLES = (-0.995, -0.98, -0.95, -0.9, -0.8, -0.6, -0.3, 0.0, 0.4)  # starting points of the loss fit
@@ -90,8 +90,10 @@ def design_loss(w_modes: np.ndarray, loss_modes: np.ndarray) -> Loss:
                         for k in range(count))
         return Loss(math.exp(-min(x[0] ** 2, MAX_SHELF_NEPERS)), shelves)
 
-    def residual(x):
-        return make(x).nepers(w_modes) / loss_modes - 1.0
+    cos_w = np.cos(w_modes)
+
+    def residuals(xs):  # each row's make(x).nepers(w_modes) / loss_modes - 1, all rows at once
+        return _nepers_rows(xs.tolist(), count, cos_w) / loss_modes - 1.0
 
     shapes = {c: Loss(1.0, (_shelf(c, 1e-6),)).nepers(w_modes) / 1e-6 for c in SHELF_POLES}
     best = None
@@ -105,12 +107,28 @@ def design_loss(w_modes: np.ndarray, loss_modes: np.ndarray) -> Loss:
     x0 = [math.sqrt(coef[0])]
     for depth, c in zip(coef[1:], poles):
         x0 += [math.sqrt(depth), math.atanh(c / 0.999)]
-    return make(levenberg_marquardt(numeric_jacobian(residual), np.array(x0), iterations=60))
+    return make(levenberg_marquardt(numeric_jacobian_rows(residuals), np.array(x0), iterations=60))
+
+
+def _nepers_rows(points: list[list[float]], count: int, cos_w: np.ndarray) -> np.ndarray:
+    """``make(x).nepers(w)`` of :func:`design_loss` for every point ``x`` (one row each;
+    ``cos_w = cos(w)``), with the very arithmetic of ``make`` and :meth:`Loss.nepers` (the
+    scalars in plain floats, each array operation on all rows at once): the loss fit's
+    Jacobian asks for a point and its steps together."""
+    out = np.array([-math.log(math.exp(-min(x[0] ** 2, MAX_SHELF_NEPERS))) for x in points])[:, None]
+    for k in range(count):
+        shelves = [_shelf(0.999 * math.tanh(x[2 + 2 * k]), min(x[1 + 2 * k] ** 2, MAX_SHELF_NEPERS)) for x in points]
+        b = np.array([shelf[0] for shelf in shelves])[:, None]
+        c = np.array([shelf[1] for shelf in shelves])[:, None]
+        dc = np.array([math.log((1.0 + c_k) / (1.0 + b_k)) for b_k, c_k in shelves])[:, None]
+        out = out + 0.5 * (np.log1p(c * c + 2.0 * c * cos_w) - np.log1p(b * b + 2.0 * b * cos_w)) - dc
+    return out
 
 
 def filter_losses(w_modes: np.ndarray, round_trip: np.ndarray, a: float, b: float) -> dict:
     """Each distinct filter's :class:`Loss`, its share of the round trip's being its length."""
     shares = {"end0": a, "middle": 0.5 * (b - a), "endL": 1.0 - b}
-    shares["ends"] = shares["end0"]
-    return {name: design_loss(w_modes, share * round_trip) if share > 1e-9 else None
-            for name, share in shares.items()}
+    losses = {name: design_loss(w_modes, share * round_trip) if share > 1e-9 else None
+              for name, share in shares.items()}
+    losses["ends"] = losses["end0"]  # the same share: the same fit
+    return losses

@@ -25,6 +25,7 @@ import numpy as np
 
 from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, scale, start_ramp
 from ...exciters import POSITIONS_ALONG, ExciterSet, ForceQueue, largest_deflection
+from ...jitstart import compiled_for
 from ..base import Voice
 from . import kernel as K
 from .design import AllpassDesign, design_for
@@ -40,6 +41,8 @@ the filters cannot place the strike point much closer (their fit leaves a point 
 pinned end moving at up to 1 % of a wave's amplitude, where the real bar gives nothing), so
 the force the real bar would need there (growing as the point nears the end) is not applied
 to a point that still moves."""
+
+_start_ramp = start_ramp.py_func  # from Python: the same arithmetic, without loading a kernel for it
 
 
 def _reckoned(position: float) -> float:
@@ -105,14 +108,11 @@ class _Engine:
             strike_rows=np.ascontiguousarray(design.injection),
             pickup_rows=np.ascontiguousarray(design.pickup),
         )
-        self.clear()
+        self.state = K.empty_state(self.loop)
+        self._run = None  # process compiled for these records, resolved at the first run (jitstart.compiled_for)
 
     def clear(self) -> None:
-        self._use(K.empty_state(self.loop))
-
-    def _use(self, state: K.LoopState) -> None:
-        self.state = state
-        self._arguments = K.arguments(self.loop, state)
+        K.silence(self.state)
 
     def same_shape(self, other: _Engine) -> bool:
         """Whether ``other``'s state fits this waveguide (then what rings can carry over)."""
@@ -123,11 +123,14 @@ class _Engine:
                 and self.state.buffers.shape == other.state.buffers.shape)
 
     def take_state(self, other: _Engine) -> None:
-        self._use(other.state)
+        self.state = other.state
 
     def run(self, out: np.ndarray, force: ForceQueue) -> None:
         """``out.size`` samples driven by ``force`` (advanced past them)."""
-        K.process(out, force.pending, force.held, *self._arguments)
+        run = self._run
+        if run is None:  # process's dispatcher would type the two records at every call (~2.4 us)
+            run = self._run = compiled_for(K.process, out, force.pending, force.held, self.loop, self.state)
+        run(out, force.pending, force.held, self.loop, self.state)
         force.advance(out.size)
 
 
@@ -186,17 +189,19 @@ class AllpassVoice(Voice):
     def _prepare(self) -> None:
         self._engine = self._build()
         self._strike_point = _StrikePoint(self._params, self._engine.design)
+        self._fade = ramp_steps(FADE_S, self.sample_rate)
+        self._fade_gains = np.arange(self._fade + 1) / self._fade
+        self._part = np.empty(self.max_block)
+        self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
+        self._scale = None  # smoothing.scale's compiled entry point, resolved at the first render
 
     def _reset(self) -> None:
         self._engine.clear()
         self._exciters = ExciterSet(self.model.exciters, self._params, self.sample_rate)
         self._retired: list[_Retired] = []
         self._force = ForceQueue()
-        self._fade = ramp_steps(FADE_S, self.sample_rate)
-        self._fade_gains = np.arange(self._fade + 1) / self._fade
-        self._part = np.empty(self.max_block)
-        self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
-        start_ramp(self._level, MULTIPLICATIVE, self._level_gain(), 0)
+        self._level[:] = 0.0
+        _start_ramp(self._level, MULTIPLICATIVE, self._level_gain(), 0)
 
     def _update(self, old: AllpassParams) -> None:
         """What rings keeps ringing: the same shape carries on with the new coefficients; a new
@@ -205,7 +210,7 @@ class AllpassVoice(Voice):
         engine = self._build()
         level = self._level_gain()
         if level != self._level[TARGET]:
-            start_ramp(self._level, MULTIPLICATIVE, level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
+            _start_ramp(self._level, MULTIPLICATIVE, level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
         if engine.same_shape(self._engine):
             engine.take_state(self._engine)
         else:
@@ -233,5 +238,8 @@ class AllpassVoice(Voice):
         self._engine.run(out, self._force)
         if self._retired:
             self._retired = [r for r in self._retired if r.add_to(out, self._part, self._fade_gains)]
-        scale(out, self._level, MULTIPLICATIVE)
+        run = self._scale
+        if run is None:  # the dispatcher would type the arguments at every call (jitstart.compiled_for)
+            run = self._scale = compiled_for(scale, out, self._level, MULTIPLICATIVE)
+        run(out, self._level, MULTIPLICATIVE)
 

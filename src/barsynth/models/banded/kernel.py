@@ -17,9 +17,9 @@ The loops are a structured array, one :data:`LOOP` record per loop (from design.
 they carry between blocks is a :class:`LoopState` (one :data:`FILTER` record per loop, the
 delay lines, the write position, and the bowed kernel's work space), so blocks of any size
 give the same samples as one long block. Everything is allocated outside the kernels: a
-block allocates nothing. (Structured arrays rather than NamedTuples of arrays: numba
-dispatches a NamedTuple argument through Python, measured at 1.5-1.9 us a call, a structured
-array in 0.4 us.)
+block allocates nothing. The kernels take the state as one record; numba's dispatcher would
+type that record in Python at every call (about 1 us), so the voice calls the compiled
+overloads' entry points (:func:`barsynth.jitstart.compiled_for`).
 
 With a bow (:func:`process_bowed`) the bands are coupled through the friction at the bow
 point, one sample at a time: every band's all-pass output (which depends only on the past)
@@ -82,6 +82,15 @@ def empty_state(bands: int, longest_delay: int) -> LoopState:
                      np.zeros((bands + 4, max(CHUNK, bands))))
 
 
+def silence(state: LoopState) -> None:
+    """Empty ``state`` in place, as :func:`empty_state` makes it: every filter, delay line and
+    the work space at zero, the write index at 0."""
+    state.filters[:] = 0
+    state.buffers[:] = 0.0
+    state.position[:] = 0
+    state.work[:] = 0.0
+
+
 def carried_over(state: LoopState, old_rows: np.ndarray, rows: np.ndarray, longest_delay: int) -> LoopState:
     """New loops for a changed set of modes (``rows``: the mode of each new loop, ``old_rows``
     of each old one): a mode that stays keeps its filters and its recent past, so what rings
@@ -99,17 +108,18 @@ def carried_over(state: LoopState, old_rows: np.ndarray, rows: np.ndarray, longe
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def process(out, pending, held, loops, filters, buffers, position, level):  # pragma: no cover - compiled
+def process(out, pending, held, loops, state, level):  # pragma: no cover - compiled
     """Run the bank for ``out.size`` samples driven by a force (N): ``pending[t]`` for the
     first ``pending.size`` samples, then ``held``. ``loops``: :data:`LOOP` records;
-    ``filters``, ``buffers``, ``position``: the :class:`LoopState`, updated; ``level``: the
-    output gain, a multiplicative :mod:`barsynth.dsp.smoothing` state (stepped a sample at a
-    time, so the sum is exactly the loops' for a gain held at 1).
+    ``state``: the :class:`LoopState`, updated; ``level``: the output gain, a multiplicative
+    :mod:`barsynth.dsp.smoothing` state (stepped a sample at a time, so the sum is exactly
+    the loops' for a gain held at 1).
 
     With a force known in advance the bands do not interact, so they run two at a time over
     the whole block with their states in registers (measured: twice as fast as all bands per
     sample for a 12-mode bowl).
     """
+    filters, buffers, position = state.filters, state.buffers, state.position
     bands = loops.shape[0]
     mask = buffers.shape[1] - 1
     start = position[0]
@@ -159,11 +169,10 @@ def process(out, pending, held, loops, filters, buffers, position, level):  # pr
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def process_bowed(out, pending, held_force, lines, start, loops, filters, buffers, position, work,
-                  level):  # pragma: no cover - compiled
+def process_bowed(out, pending, held_force, lines, start, loops, state, level):  # pragma: no cover - compiled
     """As :func:`process` (``held_force`` is its ``held``), with a bow as well, whose controls
     are the breakpoint ``lines`` of :class:`barsynth.dsp.bow_stroke.BowControls`; ``start`` is
-    the absolute sample index of ``out[0]``; ``work`` is the state's work space. The bow's
+    the absolute sample index of ``out[0]``; the state's ``work`` is the work space. The bow's
     velocity is speed x velocity (m/s), its force pressure x force (N).
 
     The bar's velocity at the bow, ``v = sum(bow_at ap)``, is known before this sample's
@@ -176,6 +185,7 @@ def process_bowed(out, pending, held_force, lines, start, loops, filters, buffer
     size gives the same samples. (Measured on 10 s of the 4-mode bar: 12.7 ms, against 20 ms
     for all bands sample by sample with the controls read per sample.)
     """
+    filters, buffers, position, work = state.filters, state.buffers, state.position, state.work
     mask = buffers.shape[1] - 1
     pos = position[0]
     n = out.size

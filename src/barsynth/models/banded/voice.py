@@ -22,10 +22,13 @@ import numpy as np
 from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
 from ...dsp.bow_stroke import BowControls
 from ...exciters import Bow, ExciterSet, ForceQueue
+from ...jitstart import compiled_for
 from ..base import Voice
 from . import kernel as K
 from .design import BankDesign, design_bank
 from .table import BandedParams
+
+_start_ramp = start_ramp.py_func  # from Python: the same arithmetic, without loading a kernel for it
 
 
 class BandedVoice(Voice):
@@ -52,17 +55,22 @@ class BandedVoice(Voice):
     _level: np.ndarray
 
     def _prepare(self) -> None:
-        """Design the loops for ``self.sample_rate`` (raises for an object with no mode that can sound)."""
-        self._bank = design_bank(self._params, self.sample_rate)
+        """Design the loops for ``self.sample_rate`` (raises for an object with no mode that can
+        sound) and allocate their state and the level's."""
+        bank = design_bank(self._params, self.sample_rate)
+        self._bank = bank
+        self._state = K.empty_state(len(bank.modes), bank.longest_delay)
+        self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
+        self._run = self._run_bowed = None  # the kernels compiled for these records (jitstart.compiled_for)
 
     def _reset(self) -> None:
         """Silence: every loop emptied, no force pending, the bow off the bar; the level as it is set."""
-        self._state = K.empty_state(len(self._bank.modes), self._bank.longest_delay)
+        K.silence(self._state)
         self._forces = ForceQueue()
         self._exciters = ExciterSet(self.model.exciters, self._params, self.sample_rate)
         self._stroke = self._exciters.of(Bow).coupling()  # the bow's lines: the bowed kernel reads them
-        self._level = np.zeros(SMOOTHED_STATE)  # the output gain (multiplicative), a step a sample
-        start_ramp(self._level, MULTIPLICATIVE, self._bank.level, 0)
+        self._level[:] = 0.0
+        _start_ramp(self._level, MULTIPLICATIVE, self._bank.level, 0)
 
     def _update(self, old: BandedParams) -> None:
         """The loops are redesigned at once; what rings keeps ringing; a new level glides there
@@ -70,7 +78,7 @@ class BandedVoice(Voice):
         bank, previous = design_bank(self._params, self.sample_rate), self._bank
         self._bank = bank
         if bank.level != self._level[TARGET]:
-            start_ramp(self._level, MULTIPLICATIVE, bank.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
+            _start_ramp(self._level, MULTIPLICATIVE, bank.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
         if not (np.array_equal(bank.modes, previous.modes)
                 and self._state.buffers.shape[1] >= bank.longest_delay + 2):
             self._state = K.carried_over(self._state, previous.modes, bank.modes, bank.longest_delay)
@@ -101,14 +109,22 @@ class BandedVoice(Voice):
         n, bow, forces = out.size, self._stroke, self._forces
         now = bow.now
         bowed = min(n, max(0, bow.lifted_at - now))
-        loops, state = self._bank.loops, self._state
+        loops, state, level = self._bank.loops, self._state, self._level
+        # The kernels are called through their compiled entry points: the dispatcher would type
+        # the state record at every call. Resolved at the first use (a struck voice never compiles
+        # the bowed kernel); a bow's first block resolves the plain kernel too, for when it lifts.
+        if self._run is None:
+            self._run = compiled_for(K.process, out, forces.pending, forces.held, loops, state, level)
         if bowed:
-            K.process_bowed(out if bowed == n else out[:bowed], forces.pending, forces.held, bow.lines, now,
-                            loops, state.filters, state.buffers, state.position, state.work, self._level)
+            part = out if bowed == n else out[:bowed]
+            run = self._run_bowed
+            if run is None:
+                run = self._run_bowed = compiled_for(K.process_bowed, part, forces.pending, forces.held, bow.lines,
+                                                     now, loops, state, level)
+            run(part, forces.pending, forces.held, bow.lines, now, loops, state, level)
         if bowed < n:
             pending = forces.pending if bowed == 0 else forces.from_sample(bowed)
-            K.process(out if bowed == 0 else out[bowed:], pending, forces.held, loops, state.filters,
-                      state.buffers, state.position, self._level)
+            self._run(out if bowed == 0 else out[bowed:], pending, forces.held, loops, state, level)
         bow.now = now + n
         if forces.pending.size:
             forces.advance(n)
