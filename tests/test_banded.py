@@ -156,3 +156,20 @@ def test_a_change_of_the_set_of_modes_keeps_what_rings_ringing():
     level = np.abs(before[-480:]).max()
     assert 0.3 * level < np.abs(after[:480]).max() < 2 * level
     assert 0.1 * level < np.abs(again[:480]).max() < 2 * level
+
+
+def test_a_note_that_has_died_away_leaves_its_loops_at_exactly_zero():
+    """Loops whose every value is below kernel.TINY (-600 dB) are set to 0 at fixed sample
+    indices (every FLUSH_PERIOD from the reset), so a silent voice never computes with
+    subnormal numbers; blocks of any size still give the same samples (the contract suite),
+    and what was heard is unchanged (the golden sounds)."""
+    from barsynth.models.banded import kernel
+
+    voice = MODEL.voice(preset_parameters("banded", "uniform-bar"), sample_rate=8000)
+    voice.trigger()
+    assert np.abs(voice.process(8000, dtype=np.float64)).max() > 0.01
+    for _ in range(119):
+        voice.process(8000)
+    assert not voice.process(8000, dtype=np.float64).any()
+    state = voice._state
+    assert not state.buffers.any() and all(not state.filters[name].any() for name in kernel.FILTER.names)

@@ -1312,4 +1312,5 @@ def test_driven_until_says_when_a_bow_lets_go(name):
     assert lifted > 0
     x = voice.process(lifted + int(0.3 * RATE), dtype=np.float64)
     frames = np.sqrt(np.mean(x[lifted:lifted + 15 * 20 * MS].reshape(15, 20 * MS) ** 2, axis=1))
-    assert frames[0] > 0 and np.all(frames[1:] <= 1.05 * frames[:-1])  # nothing drives it: it only rings out
+    assert np.abs(x[:lifted]).max() > 0.0  # it was bowed (a stopping bow may damp it to exactly 0)
+    assert np.all(frames[1:] <= 1.05 * frames[:-1])  # nothing drives it: it only rings out

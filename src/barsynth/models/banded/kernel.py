@@ -60,6 +60,13 @@ FILTER = np.dtype([
 CHUNK = 64
 """The most samples the bowed kernel runs as one chunk (fewer when a delay is shorter)."""
 
+TINY = 1e-30
+"""A loop whose every state and delayed value is below this (600 dB below full scale) has died
+away: :func:`_flush_if_silent` sets it to exactly 0."""
+FLUSH_PERIOD = 4096
+"""The kernels look for loops that have died away at every multiple of this many samples from
+the voice's reset (the same indices whatever the blocks: a power of two)."""
+
 
 class LoopState(NamedTuple):
     """What a bank of loops carries from one block to the next."""
@@ -107,13 +114,35 @@ def carried_over(state: LoopState, old_rows: np.ndarray, rows: np.ndarray, longe
     return new
 
 
+@njit(nogil=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _silent(v1, v2, y1, y2, ap_x, ap_y, buffers, k):  # pragma: no cover - compiled
+    """Whether loop ``k`` has died away: its filter states (given) and its whole delay line below
+    ``TINY``; if so its delay line is set to 0 (the caller zeroes the states).
+
+    A loop that has died away decays geometrically through tiny and then subnormal numbers,
+    whose arithmetic is many times slower: a silent 4-mode bar took 37 ms a second of sound
+    after a minute, against 0.4 ms. A test in the recursions themselves cost a third of their
+    speed; this one runs every ``FLUSH_PERIOD`` samples and reads the delay line only once the
+    states are quiet. 600 dB below full scale, nothing audible changes."""
+    if (abs(v1) >= TINY or abs(v2) >= TINY or abs(y1) >= TINY or abs(y2) >= TINY or abs(ap_x) >= TINY
+            or abs(ap_y) >= TINY):
+        return False
+    row = buffers[k]
+    for i in range(row.size):
+        if abs(row[i]) >= TINY:
+            return False
+    row[:] = 0.0
+    return True
+
+
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def process(out, pending, held, loops, state, level):  # pragma: no cover - compiled
+def process(out, pending, held, loops, state, level, start):  # pragma: no cover - compiled
     """Run the bank for ``out.size`` samples driven by a force (N): ``pending[t]`` for the
     first ``pending.size`` samples, then ``held``. ``loops``: :data:`LOOP` records;
     ``state``: the :class:`LoopState`, updated; ``level``: the output gain, a multiplicative
     :mod:`barsynth.dsp.smoothing` state (stepped a sample at a time, so the sum is exactly
-    the loops' for a gain held at 1).
+    the loops' for a gain held at 1); ``start``: the sample index of ``out[0]`` counted from the
+    reset (a loop that has died away is set to 0 at every ``FLUSH_PERIOD`` of it).
 
     With a force known in advance the bands do not interact, so they run two at a time over
     the whole block with their states in registers (measured: twice as fast as all bands per
@@ -122,7 +151,7 @@ def process(out, pending, held, loops, state, level):  # pragma: no cover - comp
     filters, buffers, position = state.filters, state.buffers, state.position
     bands = loops.shape[0]
     mask = buffers.shape[1] - 1
-    start = position[0]
+    first = position[0]
     n = out.size
     n_pending = min(n, pending.size)
     out[:] = 0.0
@@ -135,36 +164,45 @@ def process(out, pending, held, loops, state, level):  # pragma: no cover - comp
         ma, mb = la.delay, lb.delay
         v1a, v2a, y1a, y2a, xa, apa = fa.v1, fa.v2, fa.y1, fa.y2, fa.ap_x, fa.ap_y
         v1b, v2b, y1b, y2b, xb, apb = fb.v1, fb.v2, fb.y1, fb.y2, fb.ap_x, fb.ap_y
-        pos = start
-        for t in range(n):
-            f = pending[t] if t < n_pending else held
-            da = buffers[k, (pos - ma) & mask]
-            db = buffers[j, (pos - mb) & mask]
-            apa = eta_a * (da - apa) + xa
-            apb = eta_b * (db - apb) + xb
-            xa = da
-            xb = db
-            va = ina * f + ga * apa
-            vb = inb * f + gb * apb
-            ya = b0a * (va - v2a) - a1a * y1a - a2a * y2a
-            yb = b0b * (vb - v2b) - a1b * y1b - a2b * y2b
-            v2a = v1a
-            v1a = va
-            y2a = y1a
-            y1a = ya
-            v2b = v1b
-            v1b = vb
-            y2b = y1b
-            y1b = yb
-            buffers[k, pos] = ya
-            if on > 0.0:
-                buffers[j, pos] = yb
-            out[t] += outa * apa + outb * apb
-            pos = (pos + 1) & mask
+        pos = first
+        t0 = 0
+        while t0 < n:  # segments that end where a loop may be flushed
+            t1 = min(n, t0 + FLUSH_PERIOD - ((start + t0) & (FLUSH_PERIOD - 1)))
+            for t in range(t0, t1):
+                f = pending[t] if t < n_pending else held
+                da = buffers[k, (pos - ma) & mask]
+                db = buffers[j, (pos - mb) & mask]
+                apa = eta_a * (da - apa) + xa
+                apb = eta_b * (db - apb) + xb
+                xa = da
+                xb = db
+                va = ina * f + ga * apa
+                vb = inb * f + gb * apb
+                ya = b0a * (va - v2a) - a1a * y1a - a2a * y2a
+                yb = b0b * (vb - v2b) - a1b * y1b - a2b * y2b
+                v2a = v1a
+                v1a = va
+                y2a = y1a
+                y1a = ya
+                v2b = v1b
+                v1b = vb
+                y2b = y1b
+                y1b = yb
+                buffers[k, pos] = ya
+                if on > 0.0:
+                    buffers[j, pos] = yb
+                out[t] += outa * apa + outb * apb
+                pos = (pos + 1) & mask
+            if ((start + t1) & (FLUSH_PERIOD - 1)) == 0:
+                if _silent(v1a, v2a, y1a, y2a, xa, apa, buffers, k):
+                    v1a = v2a = y1a = y2a = xa = apa = 0.0
+                if on > 0.0 and _silent(v1b, v2b, y1b, y2b, xb, apb, buffers, j):
+                    v1b = v2b = y1b = y2b = xb = apb = 0.0
+            t0 = t1
         fa.v1, fa.v2, fa.y1, fa.y2, fa.ap_x, fa.ap_y = v1a, v2a, y1a, y2a, xa, apa
         if on > 0.0:
             fb.v1, fb.v2, fb.y1, fb.y2, fb.ap_x, fb.ap_y = v1b, v2b, y1b, y2b, xb, apb
-    position[0] = (start + n) & mask
+    position[0] = (first + n) & mask
     scale(out, level, MULTIPLICATIVE)
 
 
@@ -200,8 +238,9 @@ def process_bowed(out, pending, held_force, lines, start, loops, state, level): 
     for k in range(bands):
         bow_at[k], out_weight[k] = loops[k].bow_at, loops[k].out
     j_speed = j_pressure = j_velocity = j_force = 0
-    for c in range(0, n, chunk):
-        m = min(chunk, n - c)
+    c = 0
+    while c < n:
+        m = min(min(chunk, n - c), FLUSH_PERIOD - ((start + c) & (FLUSH_PERIOD - 1)))
         for k in range(bands):  # all-pass outputs: they read only what was written before this chunk
             eta, delay, state = loops[k].eta, loops[k].delay, filters[k]
             x1, a = state.ap_x, state.ap_y
@@ -251,5 +290,11 @@ def process_bowed(out, pending, held_force, lines, start, loops, state, level): 
                 buffers[k, (pos + i) & mask] = y
             state.v1, state.v2, state.y1, state.y2 = v1, v2, y1, y2
         pos = (pos + m) & mask
+        c += m
+        if ((start + c) & (FLUSH_PERIOD - 1)) == 0:
+            for k in range(bands):
+                f = filters[k]
+                if _silent(f.v1, f.v2, f.y1, f.y2, f.ap_x, f.ap_y, buffers, k):
+                    f.v1 = f.v2 = f.y1 = f.y2 = f.ap_x = f.ap_y = 0.0
     position[0] = pos
     scale(out, level, MULTIPLICATIVE)

@@ -114,7 +114,7 @@ class BandedVoice(Voice):
         # the state record at every call. Resolved at the first use (a struck voice never compiles
         # the bowed kernel); a bow's first block resolves the plain kernel too, for when it lifts.
         if self._run is None:
-            self._run = compiled_for(K.process, out, forces.pending, forces.held, loops, state, level)
+            self._run = compiled_for(K.process, out, forces.pending, forces.held, loops, state, level, now)
         if bowed:
             part = out if bowed == n else out[:bowed]
             run = self._run_bowed
@@ -124,7 +124,7 @@ class BandedVoice(Voice):
             run(part, forces.pending, forces.held, bow.lines, now, loops, state, level)
         if bowed < n:
             pending = forces.pending if bowed == 0 else forces.from_sample(bowed)
-            self._run(out if bowed == 0 else out[bowed:], pending, forces.held, loops, state, level)
+            self._run(out if bowed == 0 else out[bowed:], pending, forces.held, loops, state, level, now + bowed)
         bow.now = now + n
         if forces.pending.size:
             forces.advance(n)
