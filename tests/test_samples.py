@@ -34,6 +34,9 @@ class ExplodingVoice:
     def trigger(self) -> None:
         self.n = 0
 
+    def warm_up(self) -> None:
+        """Nothing to compile ahead (the stream warms every voice it builds)."""
+
     def reset(self) -> None:
         self.n = -10 ** 9  # silence (far from ``at``) until the next trigger
 
