@@ -15,37 +15,40 @@ from fastapi.testclient import TestClient
 from barsynth.cli import main
 from barsynth.errors import SamplesError
 from barsynth.models import get_model
+from barsynth.models.base import Voice
 from barsynth.models.rendering import MAX_RAW_PEAK, check_samples
 
 RATE = 48000
 FD_BLOW_UP = {"bc": "clamped-free", "excitation": "pluck", "strike_position": 1e-155}
 
 
-class ExplodingVoice:
-    """A voice whose sound is fine until ``at`` samples, then ``bad`` (NaN, inf or a huge value)."""
+class ExplodingVoice(Voice):
+    """A banded voice whose sound is fine until ``at`` samples after a trigger, then ``bad`` (NaN,
+    inf or a huge value): the whole voice contract (models.base.Voice), its own samples."""
 
-    restarts_on_trigger = can_release = uses_seed = False  # what it can do, declared as models.base.Voice asks
-    driven_until = 0
+    model = get_model("banded")
 
     def __init__(self, parameters, bad: float = float("nan"), at: int = 4800, sample_rate: float = RATE):
-        self.parameters, self.bad, self.at, self.sample_rate = parameters, bad, at, float(sample_rate)
-        self.reset()
+        self.bad, self.at = bad, at
+        super().__init__(parameters, sample_rate=sample_rate)
+
+    def _prepare(self) -> None:
+        pass
+
+    def _reset(self) -> None:
+        self.n = -10 ** 9  # silence (far from ``at``) until the next trigger
+
+    def _update(self, old) -> None:
+        pass
 
     def trigger(self) -> None:
         self.n = 0
 
-    def warm_up(self) -> None:
-        """Nothing to compile ahead (the stream warms every voice it builds)."""
-
-    def reset(self) -> None:
-        self.n = -10 ** 9  # silence (far from ``at``) until the next trigger
-
-    def process(self, n: int, dtype=np.float64) -> np.ndarray:
-        k = self.n + np.arange(n)
-        x = np.where(k >= self.at, self.bad, 0.1 * np.sin(2 * np.pi * 440.0 * k / self.sample_rate))
-        x[k < 0] = 0.0
-        self.n += n
-        return x.astype(dtype)
+    def _render(self, out: np.ndarray) -> None:
+        k = self.n + np.arange(out.size)
+        out[:] = np.where(k >= self.at, self.bad, 0.1 * np.sin(2 * np.pi * 440.0 * k / self.sample_rate))
+        out[k < 0] = 0.0
+        self.n += out.size
 
 
 @pytest.fixture(params=[float("nan"), float("inf"), 1e30])
