@@ -74,6 +74,20 @@ GLIDES: dict[str, dict[str, Any]] = {
 FLOAT64_FEATURES = ("AVX512_SKX", "AVX512F", "AVX2", "FMA3", "AVX", "SSE42")
 
 
+# Long tails, each its own duration: the kernels set what has decayed below 1e-30 (-600 dB) to
+# exactly 0 (farnell, banded: no subnormal arithmetic), which the 0.3 s sounds never reach.
+TAILS: dict[str, tuple[str, dict[str, Any], int, float]] = {
+    "farnell/tail@22050": ("farnell", {}, 22050, 3.0),
+    "banded/tail@22050": ("banded", {"q": 3.0}, 22050, 1.0),
+    "banded/bow-tail@22050": ("banded", {"excitation": "bow", "bow_duration_s": 0.3}, 22050, 1.5),
+}
+
+
+def duration_of(name: str) -> float:
+    """How long the golden sound ``name`` is (s)."""
+    return TAILS[name][3] if name in TAILS else DURATION_S
+
+
 def cpu_features() -> str:
     """The SIMD features NumPy dispatches on here, as one sorted string."""
     try:
@@ -103,16 +117,18 @@ def sound_cases() -> list[tuple[str, str, dict[str, Any], int, dict[str, Any] | 
             for rate in SAMPLE_RATES:
                 cases.append((f"{model}/{label}@{rate}", model, params, rate, None))
         cases.append((f"{model}/glide@48000", model, {}, 48000, GLIDES[model]))
+    cases += [(name, model, params, rate, None) for name, (model, params, rate, _) in TAILS.items()]
     return cases
 
 
-def render_case(model: str, params: dict[str, Any], rate: int, change: dict[str, Any] | None) -> np.ndarray:
+def render_case(model: str, params: dict[str, Any], rate: int, change: dict[str, Any] | None,
+                duration_s: float = DURATION_S) -> np.ndarray:
     """The raw float64 samples of one golden sound."""
     from barsynth.models import get_model
 
     m = get_model(model)
     if change is None:
-        return m.render(params, duration_s=DURATION_S, sample_rate=rate, seed=7, normalize=False,
+        return m.render(params, duration_s=duration_s, sample_rate=rate, seed=7, normalize=False,
                         dtype=np.float64)
     voice = m.voice(params, sample_rate=rate, seed=7)
     voice.trigger()
@@ -147,7 +163,7 @@ def digest(samples: np.ndarray) -> str:
 def measure_all() -> dict[str, Any]:
     sounds = {}
     for name, model, params, rate, change in sound_cases():
-        samples = render_case(model, params, rate, change)
+        samples = render_case(model, params, rate, change, duration_of(name))
         sounds[name] = {"sha256": digest(samples), "rms": fingerprint(samples, rate),
                         "ramp": signed_fingerprint(samples, rate)}
     return {"cpu_features": cpu_features(), "sounds": sounds}

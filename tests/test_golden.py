@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from golden import (GOLDEN_FILE, cpu_features, digest, fingerprint, float64_family, render_case,
+from golden import (GOLDEN_FILE, cpu_features, digest, duration_of, fingerprint, float64_family, render_case,
                     signed_fingerprint, sound_cases)
 
 GOLDEN = json.loads(GOLDEN_FILE.read_text())
@@ -22,7 +22,7 @@ def test_every_case_has_a_golden_sound():
 
 @pytest.mark.parametrize("name, model, params, rate, change", CASES, ids=[c[0] for c in CASES])
 def test_golden_sound(name, model, params, rate, change):
-    samples = render_case(model, params, rate, change)
+    samples = render_case(model, params, rate, change, duration_of(name))
     golden = GOLDEN["sounds"][name]
     assert np.isfinite(samples).all() and np.abs(samples).max() > 0
     if SAME_CPU:
