@@ -226,3 +226,12 @@ def test_importing_checks_does_not_load_numpy():
     code = "import sys, barsynth.checks as c; c.check_number('q', 2, ''); print('numpy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["False"]
+
+
+def test_a_float_beyond_2_to_53_is_not_taken_for_the_whole_number_typed():
+    """1e30 as a float is 1000000000000000019884624838656, not 10**30: refused, not misread."""
+    from barsynth.checks import check_whole
+
+    assert check_whole("seed", 2.0 ** 53, "", 0, None, integral_floats=True) == 2 ** 53
+    with pytest.raises(ParameterError, match="not a whole number"):
+        check_whole("seed", 1e30, "", 0, None, integral_floats=True)

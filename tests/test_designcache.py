@@ -160,3 +160,64 @@ def test_a_key_that_cannot_be_made_leaves_the_design_uncached(cache):
     assert get(counter, sources=("barsynth.no_such_module",))["value"] == 0.1 / 3.0
     get(counter, sources=("barsynth.no_such_module",))
     assert counter.calls == 2 and not cache.exists()
+
+
+def test_a_folder_others_may_write_to_is_neither_read_nor_written(cache):
+    """A record is data the program trusts: in a designs folder that a group or another user may
+    write to (someone could plant one), nothing is read or stored; the design is computed."""
+    counter = Counter()
+    get(counter)
+    os.chmod(cache, 0o777)
+    try:
+        get(counter)
+        get(counter, inputs=(2,))
+        assert counter.calls == 3 and len(list(cache.glob("test-*.json"))) == 1
+    finally:
+        os.chmod(cache, 0o700)
+    get(counter)
+    assert counter.calls == 3  # ours again: read
+
+
+def test_a_hit_marks_the_design_used_and_old_temporaries_are_removed(cache):
+    counter = Counter()
+    get(counter, inputs=(1,))
+    (stored,) = cache.glob("test-*.json")
+    os.utime(stored, (1.0, 1.0))
+    left = cache / ".test-killed.tmp"  # what a process killed mid-write leaves
+    left.write_text("{")
+    os.utime(left, (1.0, 1.0))
+    fresh = cache / ".test-writing.tmp"  # another process writing now
+    fresh.write_text("{")
+    get(counter, inputs=(1,))
+    assert stored.stat().st_mtime > 1.0  # used now: pruned last
+    get(counter, inputs=(2,))  # a write prunes
+    assert not left.exists() and fresh.exists()
+
+
+def test_a_record_that_cannot_be_written_leaves_the_design_uncached(cache):
+    counter = Counter()
+    result = designcache.cached("test", [1], SOURCES, counter, lambda r: {"bad": object()}, from_record)
+    assert result["value"] == 0.1 / 3.0 and not list(cache.glob("test-*.json"))
+
+
+def test_a_package_without_sources_is_not_cached(cache, tmp_path, monkeypatch):
+    package = tmp_path / "compiledonly"
+    package.mkdir()
+    (package / "__init__.pyc").write_bytes(b"")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    counter = Counter()
+    get(counter, sources=("compiledonly",))
+    get(counter, sources=("compiledonly",))
+    assert counter.calls == 2 and not list(cache.glob("test-*.json"))
+
+
+def test_the_command_line_called_in_a_process_leaves_numba_as_it_is():
+    """Only the program (barsynth.entry) lightens numba's cache loads and skips its imports; a
+    process that calls barsynth.cli.main itself (tests, other programs) keeps numba's own."""
+    code = ("from click.testing import CliRunner\n"
+            "from barsynth.cli import main\n"
+            "assert CliRunner().invoke(main, ['describe', 'farnell']).exit_code == 0\n"
+            "from numba.core import caching\n"
+            "print(getattr(caching.Cache.load_overload, 'lightened', False))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300)
+    assert out.stdout.strip() == "False"

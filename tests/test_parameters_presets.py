@@ -319,3 +319,10 @@ def test_an_exciter_must_implement_the_forms_it_declares():
     assert tap.force(None).per_sample_n.tolist() == [1000.0] and tap.driven_until == 0
     with pytest.raises(NotImplementedError, match="tap"):
         tap.coupling()
+
+
+def test_a_comparison_is_not_with_a_truth_value():
+    from barsynth.parameters import Compare
+
+    with pytest.raises(ValueError, match="finite number or a parameter"):
+        Compare(">", True)

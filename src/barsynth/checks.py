@@ -266,7 +266,8 @@ def check_whole(
     number: int | None = None
     if _is_int(value) and not isinstance(value, bool):
         number = int(value)
-    elif integral_floats and isinstance(value, (float, *_numpy_types("floating"))) and float(value).is_integer():
+    elif (integral_floats and isinstance(value, (float, *_numpy_types("floating"))) and float(value).is_integer()
+          and abs(float(value)) <= 2.0 ** 53):  # beyond, a float is not the whole number that was typed
         number = int(value)
     if number is None:
         raise ParameterError(f"parameter {name} = {_show(value)} is not a whole number; {allowed}")

@@ -329,10 +329,10 @@ class _ModelCommand(click.Command):
 
 
 def _model(name: str):
-    from .jitstart import quick_start
+    from .jitstart import program_start
     from .models import get_model
 
-    quick_start()  # before the first kernel runs: spares SciPy and CFFI imports (see jitstart)
+    program_start()  # the program's, before its first kernel: spares SciPy and CFFI imports (see jitstart)
     return get_model(name)
 
 

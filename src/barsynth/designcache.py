@@ -48,6 +48,7 @@ def enable(on: bool = True) -> None:
 
 
 def enabled() -> bool:
+    """Whether this process keeps designs on disk (:func:`enable`, and a folder to keep them in)."""
     return _state["enabled"] and folder() is not None
 
 
@@ -81,11 +82,18 @@ def cached(kind: str, inputs: list[Any], sources: tuple[str, ...], compute: Call
         where = folder()
     except Exception:  # noqa: BLE001 - no key to be sure of (a source not found...): not cached
         return compute()
+    if not _private(where):  # a folder someone else could write to: neither read nor written
+        return compute()
     try:
         with open(where / name, encoding="utf-8") as file:
             stored = json.load(file)
         if stored.get("format") == FORMAT and stored.get("key") == key:
-            return from_record(stored["record"])
+            result = from_record(stored["record"])
+            try:
+                os.utime(where / name)  # used now: the last to be pruned
+            except OSError:
+                pass
+            return result
     except Exception:  # noqa: BLE001 - missing, unreadable, corrupt or malformed: computed anew
         pass
     result = compute()
@@ -95,6 +103,23 @@ def cached(kind: str, inputs: list[Any], sources: tuple[str, ...], compute: Call
         return result
     _write(where, name, content, kind)
     return result
+
+
+def _private(where: Path) -> bool:
+    """Whether the ``designs`` folder is ours alone: missing (it will be made with mode 0o700),
+    or a real folder owned by this user that no group or other user may write to. A record is
+    data the program trusts (it runs no code, but a planted one would give wrong sounds)."""
+    import stat
+
+    try:
+        info = os.lstat(where)
+    except FileNotFoundError:
+        return True
+    except OSError:
+        return False
+    getuid = getattr(os, "getuid", None)
+    owner_ok = getuid is None or info.st_uid == getuid()
+    return stat.S_ISDIR(info.st_mode) and owner_ok and not info.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
 
 
 def array_record(array) -> dict:
@@ -145,7 +170,34 @@ def _versions_and_cpu() -> dict:
     except (AttributeError, ValueError, OSError):  # pragma: no cover - not glibc
         libc = None
     return {"python": sys.version, "numpy": np.__version__, "libc": libc or platform.libc_ver()[1],
-            "machine": platform.machine(), "cpu": sorted(name for name, on in features.items() if on)}
+            "machine": platform.machine(), "cpu": sorted(name for name, on in features.items() if on),
+            "cpu_model": _cpu_model(), "blas": _blas()}
+
+
+def _cpu_model() -> str:
+    """The CPU's model name (Linux: /proc/cpuinfo), else the platform's word for it."""
+    import platform
+
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as file:
+            for line in file:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor()
+
+
+def _blas() -> str:
+    """NumPy's BLAS and LAPACK (name and version), whose arithmetic the fits' solves use."""
+    try:
+        from numpy.__config__ import CONFIG
+
+        deps = CONFIG.get("Build Dependencies", {})
+        return " ".join(f"{k}={deps.get(k, {}).get('name')}-{deps.get(k, {}).get('version')}"
+                        for k in ("blas", "lapack"))
+    except Exception:  # noqa: BLE001 - an older NumPy: its version stands for its BLAS
+        return "unknown"
 
 
 def _source_digest(sources: tuple[str, ...]) -> str:
@@ -160,12 +212,41 @@ def _source_digest(sources: tuple[str, ...]) -> str:
             if spec is None or spec.origin is None:
                 raise ImportError(f"no source for {name}")
             origin = Path(spec.origin)
-            files = sorted(origin.parent.glob("*.py")) if origin.name == "__init__.py" else [origin]
+            if origin.suffix != ".py":  # only compiled files (.pyc): no source to be sure of
+                raise ImportError(f"no .py source for {name}")
+            files = sorted(origin.parent.rglob("*.py")) if origin.name == "__init__.py" else [origin]
             for file in files:
-                digest.update(f"{name}/{file.name}\0".encode())
+                digest.update(f"{name}/{file.relative_to(origin.parent).as_posix()}\0".encode())
                 digest.update(file.read_bytes())
         _digests[sources] = digest.hexdigest()
     return _digests[sources]
+
+
+STALE_TEMPORARY_S = 3600.0
+"""A temporary file of ours older than this was left by a process that was killed mid-write."""
+
+
+def _prune(where: Path, kind: str) -> None:
+    """Keep the ``MAX_FILES`` designs of ``kind`` used last (a hit touches its file); remove our
+    temporary files that a killed process left."""
+    import time
+
+    mine = []
+    for path in where.glob(f"{kind}-*.json"):
+        try:
+            mine.append((path.stat().st_mtime, path))
+        except OSError:  # removed by another process meanwhile
+            continue
+    mine.sort()
+    for _, old in mine[:-MAX_FILES]:
+        old.unlink(missing_ok=True)
+    now = time.time()
+    for path in where.glob(f".{kind}-*.tmp"):
+        try:
+            if now - path.stat().st_mtime > STALE_TEMPORARY_S:
+                path.unlink(missing_ok=True)
+        except OSError:
+            continue
 
 
 def _write(where: Path, name: str, content: dict, kind: str) -> None:
@@ -182,10 +263,8 @@ def _write(where: Path, name: str, content: dict, kind: str) -> None:
             json.dump(content, file, separators=(",", ":"))
         os.replace(temporary, where / name)
         temporary = None
-        mine = sorted(where.glob(f"{kind}-*.json"), key=lambda p: p.stat().st_mtime)
-        for old in mine[:-MAX_FILES]:
-            old.unlink(missing_ok=True)
-    except OSError:
+        _prune(where, kind)
+    except Exception:  # noqa: BLE001 - a read-only disk, no space, a value JSON cannot hold: not stored
         pass
     finally:
         if temporary is not None:

@@ -7,6 +7,8 @@ with a quicker start and a quicker end.
   machines).
 * Designs that take long to fit (the all-pass waveguide's) are kept on disk between runs
   (:mod:`barsynth.designcache`: ``~/.cache/barsynth``, or ``$BARSYNTH_CACHE_DIR``; empty: off).
+* numba starts without imports its kernels do not need and loads cached kernels without
+  refreshing its whole CPU target (:mod:`barsynth.jitstart`, before the first kernel).
 * When a command that loaded numba has finished (its files written and closed), the
   interpreter's tear-down (a garbage collection over numba's many objects and the
   clearing of some 600 modules, about 0.2 s after a render) is skipped: the ``atexit``
@@ -29,10 +31,11 @@ __all__ = ["run"]
 def run() -> None:
     """Run the command line and end the process with its exit status."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    from . import designcache
+    from . import designcache, jitstart
     from .cli import main
 
     designcache.enable()
+    jitstart.for_the_program()
 
     try:
         main()

@@ -17,7 +17,8 @@ Two more imports are made at numba's start for features barsynth does not use: `
 numba`` imports SciPy's top level (about 8 ms) only to check that its version is at least
 1.0 (barsynth requires 1.11), and numba's CPU target builds a ``cffi.FFI()`` (importing
 pycparser and building its lexer: about 40 ms here) to type CFFI functions passed to a
-kernel. :func:`quick_start` (the program calls it before its first kernel) imports numba
+kernel. :func:`quick_start` (the program calls it before its first kernel, through
+:func:`program_start`) imports numba
 with that version check skipped and loads numba's CFFI typing without CFFI: in that process
 numba does not type CFFI functions (barsynth passes none; ``import cffi`` itself still works).
 A library user's process is left alone unless it calls :func:`quick_start`.
@@ -39,7 +40,28 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-__all__ = ["argument_type", "compiled_for", "defer_blas_probe", "lighten_cache_loads", "quick_start"]
+__all__ = ["argument_type", "compiled_for", "defer_blas_probe", "for_the_program", "is_the_program",
+           "lighten_cache_loads", "program_start", "quick_start"]
+
+_PROGRAM = {"on": False}
+
+
+def for_the_program(on: bool = True) -> None:
+    """Say that this process is the ``barsynth`` program (:mod:`barsynth.entry`, the studio's
+    workers), whose first kernel :func:`program_start` then prepares; a library user's process,
+    or a test calling :func:`barsynth.cli.main`, is left alone."""
+    _PROGRAM["on"] = bool(on)
+
+
+def is_the_program() -> bool:
+    """Whether :func:`for_the_program` was said in this process."""
+    return _PROGRAM["on"]
+
+
+def program_start() -> None:
+    """:func:`quick_start` if this process is the program (:func:`for_the_program`); else nothing."""
+    if _PROGRAM["on"]:
+        quick_start()
 
 
 def quick_start() -> None:
@@ -51,6 +73,10 @@ def quick_start() -> None:
     defer_blas_probe()
     _without("cffi", "numba.core.typing.cffi_utils")
     lighten_cache_loads()
+
+
+LOAD_OVERLOAD_NAMES = ("refresh", "_guard_against_spurious_io_errors", "_load_overload")
+"""The names numba's own ``Cache.load_overload`` uses, exactly: any other code there is left alone."""
 
 
 def lighten_cache_loads() -> bool:
@@ -70,8 +96,10 @@ def lighten_cache_loads() -> bool:
     real = getattr(caching.Cache, "load_overload", None)
     load_code = getattr(real, "__code__", None)
     compile_code = getattr(getattr(compiler.CompilerBase, "__init__", None), "__code__", None)
+    # Only numba's load_overload as it is known (numba 0.59-0.68): refresh, the guard, the load
+    # and nothing else; a numba that does more there keeps its own.
     if (getattr(real, "lightened", False) or load_code is None or compile_code is None
-            or not {"refresh", "_load_overload", "_guard_against_spurious_io_errors"} <= set(load_code.co_names)
+            or tuple(load_code.co_names) != LOAD_OVERLOAD_NAMES
             or "refresh" not in compile_code.co_names or not callable(getattr(nrt.rtsys, "initialize", None))):
         return False
 

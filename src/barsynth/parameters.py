@@ -49,7 +49,8 @@ class Compare:
     def __post_init__(self) -> None:
         if self.op not in _COMPARISONS:
             raise ValueError(f"unknown comparison {self.op!r}; allowed: one of {', '.join(_COMPARISONS)}")
-        if not isinstance(self.than, str) and not (isinstance(self.than, (int, float)) and math.isfinite(self.than)):
+        if not isinstance(self.than, str) and (isinstance(self.than, bool) or not (
+                isinstance(self.than, (int, float)) and math.isfinite(self.than))):
             raise ValueError(f"a comparison is with a finite number or a parameter's name, not {self.than!r}")
 
     def holds(self, value: Any, resolved: Any) -> bool:

@@ -51,6 +51,11 @@ def start_ramp(state, kind, target, steps):  # pragma: no cover - compiled
     state[LEFT] = steps
 
 
+start_ramp_now = start_ramp.py_func
+""":func:`start_ramp` called from Python (an event, not a block): the same arithmetic, without
+loading (or compiling) a kernel for it."""
+
+
 @njit(cache=True, inline="always")
 def next_value(state, kind):  # pragma: no cover - compiled
     """One step along the ramp; the value after it (the target once the ramp has ended)."""

@@ -146,6 +146,7 @@ class ExciterSet:
         self._by_name = {kind.name: kind(settings, sample_rate) for kind in kinds}
 
     def __getitem__(self, name: str) -> Exciter[Any]:
+        """The exciter of ``excitation`` value ``name``."""
         return self._by_name[name]
 
     def of(self, kind: type[E]) -> E:
@@ -155,10 +156,12 @@ class ExciterSet:
         return exciter
 
     def update(self, settings: Any) -> None:
+        """New settings for every exciter (the voice's changed record)."""
         for exciter in self._by_name.values():
             exciter.update(settings)
 
     def release(self) -> None:
+        """Let go of every exciter (only a moving bow does anything)."""
         for exciter in self._by_name.values():
             exciter.release()
 

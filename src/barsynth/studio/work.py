@@ -37,9 +37,14 @@ DISCONNECT_POLL_S = 0.25
 WORKER_NICENESS = 10
 
 
-def _start_worker() -> None:
+def _start_worker(program: bool = False, cache: bool = False) -> None:
     """In each worker: a lower priority than the server, and an end with the server's process
-    (a watcher thread sees the parent gone, even after a SIGKILL, within a second)."""
+    (a watcher thread sees the parent gone, even after a SIGKILL, within a second); as the
+    server's process is, the program's (numba's quick start) and with the design cache on."""
+    from .. import designcache, jitstart
+
+    jitstart.for_the_program(program)
+    designcache.enable(cache)
     try:
         os.nice(WORKER_NICENESS)
     except OSError:  # not allowed here: run at the same priority
@@ -105,7 +110,10 @@ class Workers:
         self._closed = False
 
     def _new_process(self) -> Any:
-        executor = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_start_worker)
+        from .. import designcache, jitstart
+
+        executor = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_start_worker,
+                                       initargs=(jitstart.is_the_program(), designcache.enabled()))
         executor.submit(os.getpid)  # start the process now, not when the next job comes
         return executor
 

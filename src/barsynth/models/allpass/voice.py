@@ -23,7 +23,8 @@ from functools import cached_property
 
 import numpy as np
 
-from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, scale, start_ramp
+from ...dsp.smoothing import (LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, scale,
+                              start_ramp_now)
 from ...exciters import POSITIONS_ALONG, ExciterSet, ForceQueue, largest_deflection
 from ...jitstart import compiled_for
 from ..base import Voice
@@ -42,7 +43,6 @@ pinned end moving at up to 1 % of a wave's amplitude, where the real bar gives n
 the force the real bar would need there (growing as the point nears the end) is not applied
 to a point that still moves."""
 
-_start_ramp = start_ramp.py_func  # from Python: the same arithmetic, without loading a kernel for it
 
 
 def _reckoned(position: float) -> float:
@@ -201,7 +201,7 @@ class AllpassVoice(Voice):
         self._retired: list[_Retired] = []
         self._force = ForceQueue()
         self._level[:] = 0.0
-        _start_ramp(self._level, MULTIPLICATIVE, self._level_gain(), 0)
+        start_ramp_now(self._level, MULTIPLICATIVE, self._level_gain(), 0)
 
     def _update(self, old: AllpassParams) -> None:
         """What rings keeps ringing: the same shape carries on with the new coefficients; a new
@@ -210,7 +210,7 @@ class AllpassVoice(Voice):
         engine = self._build()
         level = self._level_gain()
         if level != self._level[TARGET]:
-            _start_ramp(self._level, MULTIPLICATIVE, level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
+            start_ramp_now(self._level, MULTIPLICATIVE, level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
         if engine.same_shape(self._engine):
             engine.take_state(self._engine)
         else:

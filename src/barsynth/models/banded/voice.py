@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
+from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp_now
 from ...dsp.bow_stroke import BowControls
 from ...exciters import Bow, ExciterSet, ForceQueue
 from ...jitstart import compiled_for
@@ -28,7 +28,6 @@ from . import kernel as K
 from .design import BankDesign, design_bank
 from .table import BandedParams
 
-_start_ramp = start_ramp.py_func  # from Python: the same arithmetic, without loading a kernel for it
 
 
 class BandedVoice(Voice):
@@ -70,7 +69,7 @@ class BandedVoice(Voice):
         self._exciters = ExciterSet(self.model.exciters, self._params, self.sample_rate)
         self._stroke = self._exciters.of(Bow).coupling()  # the bow's lines: the bowed kernel reads them
         self._level[:] = 0.0
-        _start_ramp(self._level, MULTIPLICATIVE, self._bank.level, 0)
+        start_ramp_now(self._level, MULTIPLICATIVE, self._bank.level, 0)
 
     def _update(self, old: BandedParams) -> None:
         """The loops are redesigned at once; what rings keeps ringing; a new level glides there
@@ -78,7 +77,7 @@ class BandedVoice(Voice):
         bank, previous = design_bank(self._params, self.sample_rate), self._bank
         self._bank = bank
         if bank.level != self._level[TARGET]:
-            _start_ramp(self._level, MULTIPLICATIVE, bank.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
+            start_ramp_now(self._level, MULTIPLICATIVE, bank.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
         if not (np.array_equal(bank.modes, previous.modes)
                 and self._state.buffers.shape[1] >= bank.longest_delay + 2):
             self._state = K.carried_over(self._state, previous.modes, bank.modes, bank.longest_delay)

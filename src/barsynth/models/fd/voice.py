@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...dsp.bow_stroke import BowControls
-from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp
+from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp_now
 from ...exciters import Bow, ExciterSet, Pluck, Strike
 from ...jitstart import compiled_for
 from ..base import Voice
@@ -21,7 +21,6 @@ from . import kernel as K
 from .design import Design, design, history_size, plucked_shape
 from .table import FdParams
 
-_start_ramp = start_ramp.py_func  # from Python: the same arithmetic, without compiling it on its own
 
 
 class FdVoice(Voice):
@@ -59,7 +58,7 @@ class FdVoice(Voice):
         self._output_state = np.zeros(1, K.OUTPUT_STATE)
         self._history = np.zeros(history_size(new.taps))
         self._level = np.zeros(SMOOTHED_STATE)
-        _start_ramp(self._level, MULTIPLICATIVE, new.level, 0)
+        start_ramp_now(self._level, MULTIPLICATIVE, new.level, 0)
         self._use(new)
 
     def _use(self, new: Design) -> None:
@@ -87,7 +86,7 @@ class FdVoice(Voice):
             if p.oversampling != old.oversampling:
                 self._change_step(old.oversampling, p.oversampling, new.taps)
             if new.level != self._level[TARGET]:
-                _start_ramp(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
+                start_ramp_now(self._level, MULTIPLICATIVE, new.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
             self._use(new)
 
     def _change_step(self, old_steps: int, new_steps: int, taps: np.ndarray) -> None:
