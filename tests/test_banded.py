@@ -173,3 +173,159 @@ def test_a_note_that_has_died_away_leaves_its_loops_at_exactly_zero():
     assert not voice.process(8000, dtype=np.float64).any()
     state = voice._state
     assert not state.buffers.any() and all(not state.filters[name].any() for name in kernel.FILTER.names)
+
+
+# -- each mode's own output level (mode_gains_db) ----------------------------------------------------
+IMPULSE = {"tuning": "ratios", "frequency_hz": 200.0, "mode_ratios": (1.0, 2.9, 5.6, 9.1),
+           "mode_t60s_s": (2.0, 1.5, 1.0, 0.8), "shape": "none", "mass_kg": 0.2, "excitation": "sample",
+           "attack_level_db": -120.0}
+"""Four modes struck by the recorded attack's ideal impulse (2 x 0.03 kg x 1 m/s), shape none (every
+mode 1 everywhere): each mode starts at J / M = 0.3 m/s, its own gain times that; the attack
+itself 120 dB down."""
+
+
+def _levels_at_start(p, rate=48000):
+    """Each mode's amplitude at t = 0 in dB (measured from 50 ms, decay taken back out)."""
+    x = raw(p, 1.5, rate)
+    skip = int(0.05 * rate)
+    return np.array([20 * math.log10(_mode_level(x, rate, p["frequency_hz"] * r, t60, skip))
+                     for r, t60 in zip(p["mode_ratios"], p["mode_t60s_s"])])
+
+
+def test_each_mode_sounds_at_its_own_gain():
+    """mode_gains_db sets each mode's level in the sound (measured within 0.1 dB: an impulse rings
+    each mode at J / M times its gain); a mode without a value stays at 0 dB."""
+    impulse_level_db = 20 * math.log10(2 * 0.03 * 1.0 / 0.2)
+    plain = _levels_at_start(IMPULSE)
+    assert plain == pytest.approx([impulse_level_db] * 4, abs=0.1)
+    gains = (-12.0, 6.0, -30.0)
+    given = _levels_at_start({**IMPULSE, "mode_gains_db": gains})
+    assert given - plain == pytest.approx([*gains, 0.0], abs=0.1)
+    assert [m.gain for m in MODEL.describe({**IMPULSE, "mode_gains_db": gains})] == \
+        pytest.approx([10 ** (g / 20) for g in (*gains, 0.0)], rel=1e-12)
+
+
+def test_a_mode_gain_is_an_output_gain_its_pitch_and_decay_stay():
+    x, y = (raw(p, 1.5) for p in (IMPULSE, {**IMPULSE, "mode_gains_db": (-20.0, 10.0)}))
+    for ratio, t60 in zip(IMPULSE["mode_ratios"][:2], IMPULSE["mode_t60s_s"]):
+        a, b = (measure_partial(s[2400:], 48000, 200.0 * ratio) for s in (x, y))
+        assert b.frequency_hz == pytest.approx(a.frequency_hz, rel=1e-9)
+        assert b.t60_s == pytest.approx(a.t60_s, rel=1e-6) and a.t60_s == pytest.approx(t60, rel=0.01)
+
+
+def test_gains_of_0_db_leave_the_samples_as_they_were_and_too_many_are_refused():
+    p = preset_parameters("banded", "marimba")
+    assert np.array_equal(raw({**p, "mode_gains_db": (0.0, 0.0, 0.0)}, 0.2), raw(p, 0.2))
+    with pytest.raises(ParameterError) as info:
+        raw({**p, "mode_gains_db": (0.0,) * 4}, 0.1)
+    assert "mode_gains_db has 4 values for 3 modes" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_new_mode_gain_while_sounding_is_cross_faded_without_a_click():
+    """A change of mode_gains_db takes effect at once in the voice (as a new position does) and the
+    studio's CrossfadingVoice fades it in: both click measures pass; the bare change fails one."""
+    from barsynth.models.crossfade import CrossfadingVoice
+    from clicks import MAX_HIGHPASS_SPIKE, MAX_STEP_RATIO, highpass_spike, step_ratio
+
+    p = {"tuning": "ratios", "frequency_hz": 440.0, "mode_ratios": (1.0, 2.7), "mode_t60s_s": (4.0, 3.0),
+         "shape": "none"}
+    measures = []
+    for wrap in (False, True):
+        voice = MODEL.voice(p, sample_rate=48000)
+        voice.trigger()
+        player = CrossfadingVoice(voice) if wrap else voice
+        before = player.process(14400, dtype=np.float64)
+        player.set_parameters(mode_gains_db=(-30.0, 6.0))
+        x = np.concatenate([before, player.process(4800, dtype=np.float64)])
+        measures.append((step_ratio(x, before.size, 48000), highpass_spike(x, before.size, 48000)))
+    (bare_step, bare_spike), (step, spike) = measures
+    assert bare_step > MAX_STEP_RATIO or bare_spike > MAX_HIGHPASS_SPIKE
+    assert step <= MAX_STEP_RATIO and spike <= MAX_HIGHPASS_SPIKE
+
+
+# -- mode shapes of modes set by ratios --------------------------------------------------------------
+def test_a_bar_set_by_ratios_is_a_bar_tuned_to_them():
+    """shape = bar: the shapes are those of a free-free bar whose thickness profile puts its modes
+    at the ratios (each within 1 cent), thinned under the middle for the tuned presets; for the
+    uniform bar's own ratios, the uniform bar's shapes (within 1 %)."""
+    from barsynth.physics.tuned_bar import tune_bar
+
+    for preset in ("marimba", "xylophone", "vibraphone"):
+        ratios = preset_parameters("banded", preset)["mode_ratios"]
+        bar = tune_bar(ratios)
+        assert bar.fits and np.all(np.abs(bar.cents) < 1.0), preset
+        assert bar.ratios == pytest.approx(ratios, rel=6e-4)
+        assert bar.thickness(0.5) < 0.9 * bar.thickness(0.0), preset
+    uniform = (1.0, 2.756, 5.404, 8.933)
+    x = np.linspace(0.0, 1.0, 41)
+    p = {"tuning": "ratios", "mode_ratios": uniform}
+    from barsynth.models.banded.design import mode_shapes
+
+    assert mode_shapes(MODEL.resolve(p), 4, x) == pytest.approx(
+        np.array([mode_shape("free-free", k, x) for k in (1, 2, 3, 4)]), abs=0.01)
+
+
+def test_the_strike_points_of_a_tuned_bar_are_its_own_not_a_uniform_bars():
+    """Struck at a node of the marimba bar's first mode (not the uniform bar's 0.224), that mode
+    is silent; struck at the uniform bar's node, it rings. Ratios in any order pair with the bar's
+    modes by rank."""
+    from barsynth.models.banded.design import mode_shapes
+    from barsynth.physics.tuned_bar import tune_bar
+
+    bar = tune_bar((1.0, 4.0, 10.0))
+    near = np.linspace(0.1, 0.35, 2501)
+    first = bar.shapes_at(near)[0]
+    node = float(near[np.argmin(np.abs(first))])
+    assert abs(node - 0.2242) > 0.02
+    base = {"tuning": "ratios", "frequency_hz": 220.0, "mode_ratios": (1.0, 4.0, 10.0), "mode_t60s_s": (1.5,) * 3,
+            "pickup_position": 0.0, "excitation": "sample", "attack_level_db": -120.0}
+    at_node, at_uniform_node = (raw({**base, "strike_position": s}, 1.0) for s in (node, 0.2242))
+    skip = 2400
+    silent, ringing = (measure_partial(x[skip:], 48000, 220.0).level_db for x in (at_node, at_uniform_node))
+    second = measure_partial(at_node[skip:], 48000, 880.0).level_db
+    assert silent < second - 40 and ringing > second - 20
+    shuffled = MODEL.resolve({**base, "mode_ratios": (10.0, 1.0, 4.0)})
+    assert mode_shapes(shuffled, 3, 0.3) == pytest.approx(bar.shapes_at(0.3)[[2, 0, 1]], rel=1e-12)
+
+
+def test_ratios_no_bar_has_are_refused_with_one_line_and_shape_none_takes_them():
+    doublet = {"tuning": "ratios", "mode_ratios": (1.0, 1.001, 5.0)}  # two modes 1.7 cents apart
+    with pytest.raises(ParameterError) as info:
+        raw(doublet, 0.1)
+    message = str(info.value)
+    assert "\n" not in message and "mode_ratios = 1, 1.001, 5 with shape = bar" in message and "shape = none" in message
+    assert np.all(np.isfinite(raw({**doublet, "shape": "none"}, 0.1)))
+
+
+def test_with_shape_none_positions_have_no_effect_and_say_so():
+    p = {"tuning": "ratios", "mode_ratios": (1.0, 4.0, 10.0), "shape": "none", "mode_t60s_s": (1.0, 0.5, 0.3)}
+    reference = raw(p, 0.2)
+    for moved in ({"strike_position": 0.37}, {"pickup_position": 0.61}):
+        assert np.array_equal(raw({**p, **moved}, 0.2), reference)
+    bowed = {**p, "excitation": "bow", "bow_duration_s": 0.1}
+    assert np.array_equal(raw({**bowed, "bow_position": 0.3}, 0.2), raw(bowed, 0.2))
+    inactive = dict(MODEL.table.inactive(MODEL.resolve(p), ("strike_position", "pickup_position", "bow_position")))
+    assert set(inactive) == {"strike_position", "pickup_position", "bow_position"}
+    assert "shape = bar or ring" in inactive["pickup_position"]
+    for shaped in ({"shape": "bar"}, {"shape": "ring"}, {"tuning": "physics"}):
+        assert not MODEL.table.inactive(MODEL.resolve({**p, **shaped}), ("strike_position", "pickup_position"))
+
+
+def test_a_tuned_bar_is_kept_on_disk_exactly_for_the_program(tmp_path, monkeypatch):
+    """The program keeps each fit in the design cache: read back, the very same bar."""
+    from barsynth import designcache
+    from barsynth.physics import tuned_bar
+
+    key = tuned_bar.normalised((1.0, 3.93, 9.71))
+    monkeypatch.setenv("BARSYNTH_CACHE_DIR", str(tmp_path))
+    designcache.enable()
+    try:
+        fitted = tuned_bar._tuned.__wrapped__(key)  # fitted and written
+        files = list((tmp_path / "designs").glob("tunedbar-*.json"))
+        monkeypatch.setattr(tuned_bar, "_fit", lambda target: pytest.fail("fitted again"))
+        read = tuned_bar._tuned.__wrapped__(key)  # read back
+    finally:
+        designcache.enable(False)
+    assert len(files) == 1 and fitted.fits
+    for name in ("target", "ratios", "cents", "controls", "x", "shapes"):
+        assert np.array_equal(getattr(read, name), getattr(fitted, name)), name

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -78,7 +79,7 @@ def test_json_and_markdown_come_from_the_same_rows():
     assert [r["name"] for r in rows] == list(TABLE.names)
     assert rows[0] == {"name": "rate_hz", "unit": "Hz", "min": 0.1, "max": 1000.0, "default": 10.0,
                        "doc": "a log-scaled rate", "scale": "log", "kind": "float", "choices": None,
-                       "max_items": None, "when": None, "when_text": None, "sets": None}
+                       "max_items": None, "when": None, "when_text": None, "sets": None, "data": False}
     md = TABLE.to_markdown()
     assert md.count("\n") == len(TABLE) + 2
     assert "| `mode` | - | a / b | a |" in md
@@ -126,6 +127,23 @@ def test_a_floats_parameter_takes_lists_from_the_cli_toml_and_json():
     assert "| `ratios` | - | up to 4 values, each 0.5 to 100 | 1, 4 |" in table.to_markdown()
     with pytest.raises(ValueError):
         Parameter("bad", "", 1.0, 2.0, (3.0,), "out of range default", kind=FLOATS, max_items=2)
+    # a record's own tuple of floats is checked at once, and refused with the same words
+    for bad, needle in [((1.0, 200.0), "value 2 = 200.0 is out of range"), ((1.0, math.nan), "value 2 = nan"),
+                        ((1.0,) * 5, "has 5 values")]:
+        with pytest.raises(ParameterError, match=needle):
+            ratios.validate(bad)
+    given = (1.0, 2.5)
+    assert ratios.validate(given) is given
+
+
+def test_a_data_row_is_taken_as_any_row_and_shown_by_its_count():
+    samples = Parameter("samples", "", -1.0, 1.0, (0.5, -0.5, 0.25), "a recording", kind=FLOATS, max_items=10,
+                        data=True)
+    table = ParameterTable("data", [samples, Parameter("rate_hz", "Hz", 1.0, 10.0, 2.0, "")])
+    assert table.resolve({"samples": "0.1,0.2"}).samples == (0.1, 0.2)
+    assert samples.to_json()["data"] is True and table["rate_hz"].to_json()["data"] is False
+    assert samples.shown((0.1,) * 7) == "(7 values)" and table["rate_hz"].shown(2.0) == "2"
+    assert "| `samples` | - | up to 10 values, each -1 to 1 | (3 values) |" in table.to_markdown()
 
 
 @pytest.mark.parametrize("model_name,preset", [(m, p) for m in model_names() for p in preset_module.preset_names(m)])
@@ -291,14 +309,18 @@ def test_a_material_row_tells_the_page_what_each_choice_sets():
 def test_every_exciter_declares_its_forms_and_its_rows_say_when_they_act():
     from barsynth.exciters import EXCITERS, Exciter
 
-    assert set(EXCITERS) == {"strike", "pluck", "bow"}
+    assert set(EXCITERS) == {"strike", "pluck", "bow", "sample"}
     for name, exciter in EXCITERS.items():
         assert exciter.name == name and exciter.summary
         assert exciter.in_advance or exciter.coupled
         assert (exciter.force is not Exciter.force) == exciter.in_advance
         assert (exciter.coupling is not Exciter.coupling) == exciter.coupled
+        assert (exciter.direct_sound is not Exciter.direct_sound) == exciter.direct
         for row in exciter.parameters():
             assert row.when == ((("excitation", (name,)),),)
+    shared = {row.name: row.when for row in EXCITERS["strike"].parameters(also=("sample",))}
+    assert shared["mallet_velocity_m_s"] == shared["mallet_mass_kg"] == ((("excitation", ("strike", "sample")),),)
+    assert shared["mallet_hardness"] == ((("excitation", ("strike",)),),)
 
 
 def test_an_exciter_must_implement_the_forms_it_declares():
@@ -308,6 +330,9 @@ def test_an_exciter_must_implement_the_forms_it_declares():
         type("Declared", (Exciter,), {"name": "declared", "in_advance": True})
     with pytest.raises(TypeError, match="coupling"):
         type("Undeclared", (Exciter,), {"name": "undeclared", "coupling": lambda self: None})
+    with pytest.raises(TypeError, match="direct_sound"):
+        type("Unheard", (Exciter,), {"name": "unheard", "direct": True, "in_advance": True,
+                                     "force": lambda self, drive: None})
 
     class Tap(Exciter):
         name, summary, in_advance = "tap", "a unit impulse", True

@@ -31,6 +31,7 @@ from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from barsynth.models import get_model
+from barsynth.studio import live as studio_live
 from barsynth.studio import server as studio_server
 from barsynth.studio import work as studio_work
 from barsynth.studio.work import Workers
@@ -152,7 +153,7 @@ def test_a_bad_request_gets_one_clear_line(studio, path, body, status, words):
 
 def test_a_huge_body_without_a_length_and_a_missing_preset_are_refused(studio):
     def chunks():  # sent chunked: the server cannot check a Content-Length first
-        for _ in range(8):
+        for _ in range(studio_server.MAX_BODY_BYTES // 4096 + 2):
             yield b" " * 4096
 
     with studio.client() as client:
@@ -275,12 +276,13 @@ def test_bad_stream_messages_get_an_error_and_the_sound_goes_on(studio):
 def test_an_oversized_stream_message_is_refused_and_a_huge_one_closes_only_that_stream(studio):
     async def scenario():
         async with _connect(studio) as ws:
-            await ws.send(json.dumps({"type": "start", "model": "twang", "parameters": {"x": "a" * 20000}}))
+            most = studio_live.MAX_MESSAGE_BYTES
+            await ws.send(json.dumps({"type": "start", "model": "twang", "parameters": {"x": "a" * (most + 100)}}))
             answer = json.loads(await asyncio.wait_for(ws.recv(), WAIT_S))
-            assert answer == {"type": "error", "error": "a stream message is too large; allowed: up to 16384 bytes"}
+            assert answer == {"type": "error", "error": f"a stream message is too large; allowed: up to {most} bytes"}
             await Page(ws).start("banded")
         async with _connect(studio) as ws:
-            await ws.send(json.dumps({"type": "start", "model": "twang", "parameters": {"x": "a" * 100000}}))
+            await ws.send(json.dumps({"type": "start", "model": "twang", "parameters": {"x": "a" * (5 * most)}}))
             with pytest.raises(ConnectionClosed) as closed:
                 await asyncio.wait_for(ws.recv(), WAIT_S)
             assert closed.value.rcvd is not None and closed.value.rcvd.code == 1009  # message too big

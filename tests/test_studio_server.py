@@ -49,6 +49,23 @@ def test_a_render_is_a_wav_of_the_asked_sound(client):
     assert np.fft.rfftfreq(x.size, 1 / rate)[np.argmax(spectrum)] == pytest.approx(330.0, abs=1.0)
 
 
+def test_the_longest_recorded_attack_fits_a_request_and_its_rows_are_data(client):
+    """The studio sends every value it keeps, a data row's too: the longest attack (0.1 s at 192 kHz,
+    each sample written as a browser writes a double) fits a request, and renders."""
+    from barsynth.exciters.sample import MAX_ATTACK_SAMPLES
+
+    rows = {row["name"]: row for row in next(m for m in client.get("/api/models").json()["models"]
+                                             if m["name"] == "banded")["parameters"]}
+    assert rows["attack_samples"]["data"] and rows["attack_rate_hz"]["data"] and not rows["level_db"]["data"]
+    attack = (-0.12345678901234568 + 1e-20 * np.arange(MAX_ATTACK_SAMPLES)).tolist()
+    body = {"model": "banded", "parameters": {"excitation": "sample", "attack_samples": attack,
+                                              "attack_rate_hz": 192000}, "duration_s": 0.2, "sample_rate": 48000}
+    assert MAX_BODY_BYTES > len(json.dumps(body)) > 400_000
+    r = client.post("/api/render", json=body)
+    assert r.status_code == 200, r.text
+    assert soundfile.read(io.BytesIO(r.content))[0].size == 9600
+
+
 def test_describe_gives_modes_and_a_reference_models_errors(client):
     r = client.post("/api/describe", json={"model": "fd", "parameters": {"points": 60}, "sample_rate": 48000})
     modes = r.json()["modes"]

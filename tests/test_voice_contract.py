@@ -368,16 +368,27 @@ def _retired_gone(voice, first: int, end: int) -> bool:
     return not voice._retired  # ...rings out, fades over FADE_S and is dropped while measured
 
 
+def _attack_heard_inside(voice, first: int, end: int) -> bool:
+    from barsynth.exciters import Sample
+
+    return voice._exciters.of(Sample).attack.size > first + ALLOCATION_BLOCK  # heard across a block's end
+
+
+LONG_ATTACK = tuple(float(v) for v in 0.5 * np.sin(0.05 * np.arange(4800)))  # 0.1 s at 48 kHz
+
 MEASURED_SCENARIOS = {
     "banded": {"bowl-bowed": Measured({**BOWL, "excitation": "bow", "bow_duration_s": 0.05}, reached=_lifted_inside),
-               "bowl-plucked": Measured({**BOWL, "excitation": "pluck"})},
+               "bowl-plucked": Measured({**BOWL, "excitation": "pluck"}),
+               "long-attack": Measured({"excitation": "sample", "attack_samples": LONG_ATTACK},
+                                       reached=_attack_heard_inside)},
     "allpass": {"retired-waveguide": Measured({"allpass_order": 12, "q": 50.0}, event=_retired_one,
                                               reached=_retired_gone)},
     "fd": {f"large-block-{ex}": Measured({"points": 20, "oversampling": 1, "excitation": ex, "bow_duration_s": 10.0},
                                          block=16384) for ex in ("strike", "bow", "pluck")},
 }
 """Beyond every excitation (with a bow that keeps bowing) and every SCENARIOS entry: the banded
-bowl bowed, its bow lifted while measured, and plucked; an all-pass bar with a replaced
+bowl bowed, its bow lifted while measured, and plucked, and a recorded attack of 0.1 s heard
+while measured; an all-pass bar with a replaced
 waveguide that rings out, fades and is dropped while measured; the finite-difference bar in
 blocks of 16384 samples. Besides these, every model through a CrossfadingVoice fading (a
 change of level, a trigger)."""
@@ -517,7 +528,8 @@ is freed before the call returns. Measured: each is the wrapper (an NRT MemInfo)
 for one NumPy array argument it unboxes into a compiled call; no kernel allocates (one more
 array in a call, or an array made inside a kernel, adds one: the test below shows both).
 twang 23 arrays in its records for a note that holds still (its static kernel) and 27 for
-one that moves, Farnell 8, banded 8 struck or plucked and 9 bowed (17 in the block its bow is
+one that moves, Farnell 8, banded 8 struck or plucked, 10 while a recorded attack is heard (the
+level applied to it) and 9 bowed (17 in the block its bow is
 lifted in: both kernels), all-pass 18 and 16 more for each replaced
 waveguide still ringing (at most MAX_RETIRED = 3), fd 18. A CrossfadingVoice adds its old
 voice's during a fade."""
@@ -944,13 +956,14 @@ SWEEP_FACTOR = 4.0
 REFUSAL_REASONS = {
     "twang": ("Nyquist",),
     "farnell": (),
-    "banded": ("no mode of this object", "too short", "values for"),
+    "banded": ("no mode of this object", "too short", "values for", "no free-free bar"),
     "allpass": ("first mode",),
     "fd": ("unstable",),
 }
 """Why each model may refuse settings that are each in range (words its one-line message must
 contain): a ruler with no audible mode; an object with no mode between 30 Hz and a quarter of
-the rate, a T60 shorter than its mode allows, more T60s than modes; a bar whose first mode
+the rate, a T60 shorter than its mode allows, more T60s or gains than modes, ratios no bar has
+with shape = bar (a doublet); a bar whose first mode
 lies outside the band the all-pass filters are fitted in; an unstable finite-difference step.
 Farnell's patch refuses nothing. Random settings and changes while sounding are refused only
 for these: a model not listed may refuse nothing (a new model adds its reasons here).

@@ -189,7 +189,8 @@ def _param_name(param: click.Parameter | None) -> str:
 
 
 def _shown(value: Any) -> str:
-    """A parameter value as people write it: 0.3, 6.9e+10, 1,4,10 (a list), - (an empty one)."""
+    """A parameter value as people write it: 0.3, 6.9e+10, 1,4,10 (a list), - (an empty one)
+    (a table's rows show theirs with :meth:`~barsynth.parameters.Parameter.shown`)."""
     if isinstance(value, tuple):
         return ",".join(f"{x:g}" for x in value) or "-"
     return f"{value:g}" if isinstance(value, float) else str(value)
@@ -399,7 +400,7 @@ def params(model_name: str, as_json: bool, markdown: bool) -> None:
     click.echo(textwrap.fill(f"{model.name}: {model.summary}", width, subsequent_indent="  "))
     for p in model.table:
         # a long range (a material's dozen choices) wraps under itself, as does the doc
-        head = f"  {p.name:<24} {_shown(p.default):>10}  "
+        head = f"  {p.name:<24} {p.shown(p.default):>10}  "
         click.echo(textwrap.fill(f"[{p.range_text()}]", width, initial_indent=head,
                                  subsequent_indent=" " * (len(head) + 1), break_on_hyphens=False))
         acts = p.when and not p.doc.startswith(p.when_text())  # (banded's bar rows say it first)
@@ -432,7 +433,7 @@ def describe(model_name, preset, assignments, sample_rate, as_json):
         return
     click.echo(f"{model.name} at {rate:g} Hz")
     for name, value in model.table.as_dict(resolved).items():
-        click.echo(f"  {name:<24} {_shown(value)}")
+        click.echo(f"  {name:<24} {model.table[name].shown(value)}")
     error_head = f" {'error (cents)':>14}" if errors else ""
     click.echo(f"{'group':<18} {'frequency (Hz)':>15} {'gain':>8} {'T60 (s)':>9}{error_head}")
     for k, m in enumerate(found):

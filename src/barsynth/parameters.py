@@ -109,6 +109,10 @@ class Parameter:
     ``(name, condition)`` pairs in the order given (empty: the parameter always acts).
     ``sets``, for a choice, maps a chosen value to the other parameters it sets (a
     ``material`` sets Young's modulus and density); see :meth:`ParameterTable.resolve`.
+    ``data`` marks a row that holds data rather than a control (a recorded attack's thousands
+    of samples, the rate they were recorded at): presets, ``--set``, validation and the docs
+    take it as any row, but the studio draws no control for it (it keeps and sends its value)
+    and listings show it briefly (:meth:`shown`: ``(4800 values)``).
     """
 
     name: str
@@ -123,6 +127,7 @@ class Parameter:
     max_items: int = 0
     when: Any = ()
     sets: Any = None
+    data: bool = False
 
     def __post_init__(self) -> None:
         # ``when``: kept as a tuple of clauses of pairs, so the record stays hashable.
@@ -189,7 +194,17 @@ class Parameter:
                 "names": list(self.sets.names),
                 "values": {c: list(self.sets.values(c, self.default).values()) for c in self.choices
                            if c != self.default}},
+            "data": self.data,
         }
+
+    def shown(self, value: Any) -> str:
+        """A value as listings show it: ``0.3``, ``6.9e+10``, ``1,4,10`` (a list), ``-`` (an empty
+        one); a data row's list by its count, ``(4800 values)``."""
+        if isinstance(value, tuple):
+            if self.data:
+                return f"({len(value)} values)"
+            return ",".join(f"{x:g}" for x in value) or "-"
+        return f"{value:g}" if isinstance(value, float) else str(value)
 
     def _when_json(self) -> Any:
         """``when`` for the studio: None, one clause (``{"excitation": ["bow"]}``, a comparison
@@ -256,6 +271,14 @@ class Parameter:
         return float(number)
 
     def _validate_floats(self, value: Any) -> tuple[float, ...]:
+        if isinstance(value, tuple) and len(value) <= self.max_items and all(type(x) is float for x in value):
+            # a record's own list (every change re-validates the whole record): checked at once,
+            # item by item below only for the message when it is refused
+            import numpy as np
+
+            numbers = np.array(value, dtype=np.float64)
+            if np.all(np.isfinite(numbers) & (numbers >= self.minimum) & (numbers <= self.maximum)):
+                return value
         if isinstance(value, str):
             items: list[Any] = [part for part in value.replace(" ", "").split(",") if part] \
                 if value.strip() else []
@@ -516,7 +539,7 @@ class ParameterTable:
             else:
                 span = f"{_fmt(p.minimum)} to {_fmt(p.maximum)}"
             if p.kind == FLOATS:
-                default = ", ".join(_fmt(x) for x in p.default) or "(none)"
+                default = p.shown(p.default) if p.data else ", ".join(_fmt(x) for x in p.default) or "(none)"
             else:
                 default = str(p.default).lower() if p.kind == BOOL else (
                     _fmt(p.default) if isinstance(p.default, float) else str(p.default))

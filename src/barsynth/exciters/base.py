@@ -14,6 +14,13 @@ which it reads only its own rows), and offers one or both of two forms, declared
   :class:`~barsynth.exciters.strike.MalletContact`, and the point held out, a
   :class:`~barsynth.exciters.pluck.PluckHold`; banded and fd: the bow's
   :class:`~barsynth.dsp.bow_stroke.BowControls`).
+- ``direct``: :meth:`Exciter.direct_sound`, samples heard at the output from the trigger on,
+  besides what the resonator makes of its force (banded: a recorded attack, the knock of
+  commuted synthesis, :class:`~barsynth.exciters.sample.Sample`). A resonator that offers such
+  an exciter adds them to its output (times its output level).
+
+An exciter may refuse settings it cannot use (:meth:`Exciter.check`: a recorded attack longer
+than allowed at its rate), so a voice can refuse them before it changes anything.
 
 Its life follows the voice's: :meth:`~Exciter.start` (a trigger: a bow stroke starts),
 :meth:`~Exciter.release` (let go: a bow slows to rest), :meth:`~Exciter.update` (new
@@ -93,6 +100,8 @@ class Exciter(Generic[S]):
     """It offers :meth:`force`: a force known in advance."""
     coupled: ClassVar[bool] = False
     """It offers :meth:`coupling`: a contact the resonator solves with its own step."""
+    direct: ClassVar[bool] = False
+    """It offers :meth:`direct_sound`: samples heard at the output from the trigger on."""
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -100,6 +109,9 @@ class Exciter(Generic[S]):
             raise TypeError(f"exciter {cls.__name__}: force() must be implemented exactly when in_advance is declared")
         if (cls.coupling is not Exciter.coupling) != cls.coupled:
             raise TypeError(f"exciter {cls.__name__}: coupling() must be implemented exactly when coupled is declared")
+        if (cls.direct_sound is not Exciter.direct_sound) != cls.direct:
+            raise TypeError(f"exciter {cls.__name__}: direct_sound() must be implemented exactly when direct is "
+                            "declared")
 
     def __init__(self, settings: S, sample_rate: float):
         self.settings = settings
@@ -110,6 +122,11 @@ class Exciter(Generic[S]):
         """The rows it adds to a model's table."""
         return []
 
+    @classmethod
+    def check(cls, settings: S, sample_rate: float) -> None:
+        """Refuse (:class:`~barsynth.errors.ParameterError`, one line naming the row) settings it
+        could not use at ``sample_rate``, changing nothing; by default it takes any."""
+
     # -- its forms ------------------------------------------------------------------------------
     def force(self, drive: DrivePoint) -> Force:
         """The in-advance form: the force of a trigger now, at a point of the resonator ``drive``."""
@@ -118,6 +135,11 @@ class Exciter(Generic[S]):
     def coupling(self) -> Any:
         """The coupled form: the record the resonator's kernel solves with its step."""
         raise NotImplementedError(f"exciter {self.name} offers no coupled form")
+
+    def direct_sound(self) -> np.ndarray:
+        """The direct form: the samples of a trigger now heard at the output from the trigger on
+        (in the resonator's output units, before its level)."""
+        raise NotImplementedError(f"exciter {self.name} offers no direct sound")
 
     # -- its life in a voice ----------------------------------------------------------------------
     def start(self) -> None:
@@ -155,8 +177,14 @@ class ExciterSet:
         assert isinstance(exciter, kind)
         return exciter
 
+    @staticmethod
+    def check(kinds: tuple[type[Exciter[Any]], ...], settings: Any, sample_rate: float) -> None:
+        """Refuse settings one of ``kinds`` could not use (:meth:`Exciter.check`), changing nothing."""
+        for kind in kinds:
+            kind.check(settings, sample_rate)
+
     def update(self, settings: Any) -> None:
-        """New settings for every exciter (the voice's changed record)."""
+        """New settings for every exciter (the voice's changed record; :meth:`check` them first)."""
         for exciter in self._by_name.values():
             exciter.update(settings)
 

@@ -61,14 +61,17 @@ class Strike(Exciter[StrikeSettings]):
     coupled = True  # the mallet itself, solved with the bar's step (fd)
 
     @staticmethod
-    def parameters() -> list[Parameter]:
+    def parameters(*, also: tuple[str, ...] = ()) -> list[Parameter]:
+        """Its rows; ``also``: other excitations that read the mallet's velocity and mass (a
+        recorded attack's ideal impulse, :class:`~barsynth.exciters.sample.Sample`)."""
+        moving = {"excitation": ("strike", *also)}
         return [
             Parameter("mallet_hardness", "", 0.0, 1.0, 0.7,
                       "0 soft (10 ms contact at 1 m/s) to 1 hard (0.2 ms): harder = more high modes", when=STRUCK),
             Parameter("mallet_velocity_m_s", "m/s", 0.05, 10.0, 1.0, "how fast the mallet arrives", scale="log",
-                      when=STRUCK),
+                      when=moving),
             Parameter("mallet_mass_kg", "kg", 0.002, 0.5, 0.03, "mass of the mallet head", scale="log",
-                      when=STRUCK),
+                      when=moving),
         ]
 
     def coupling(self) -> MalletContact:

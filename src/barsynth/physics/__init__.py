@@ -17,10 +17,12 @@ from .damping import (
 )
 from .materials import Material, material, materials
 from .modes import bar_frequencies, bending_wave_constant, mode_shape
+from .tuned_bar import TunedBar, tune_bar
 
 __all__ = [
     "BOUNDARY_CONDITIONS",
     "Material",
+    "TunedBar",
     "alpha_from_q",
     "alpha_from_t60",
     "bar_frequencies",
@@ -34,4 +36,5 @@ __all__ = [
     "q_from_t60",
     "t60_from_alpha",
     "t60_from_q",
+    "tune_bar",
 ]

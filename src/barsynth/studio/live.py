@@ -25,9 +25,13 @@ import time
 from typing import Any
 
 from ..errors import BarsynthError
+from ..exciters.sample import MAX_ATTACK_SAMPLES
 from .stream import Stream, StreamError, parse_message
 
-MAX_MESSAGE_BYTES = 16 * 1024
+DATA_BYTES = 26 * MAX_ATTACK_SAMPLES
+"""What a model's data rows may add to a message or a request: a recorded attack of up to
+MAX_ATTACK_SAMPLES numbers, each at most 25 characters and a comma in JSON (500 KB)."""
+MAX_MESSAGE_BYTES = 16 * 1024 + DATA_BYTES
 IDLE_S = 120.0  # a stream that hears nothing from its page for this long is closed
 SLOW_WINDOW_S = 0.25  # sound over which a stream's cost is compared with real time
 MAX_QUEUED = 64  # commands waiting; a page that floods the stream beyond this is closed

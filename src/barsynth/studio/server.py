@@ -45,7 +45,7 @@ from ..checks import number_within, show_value
 from ..jsonout import json_ready
 from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_json,
                          server_config, shown_address)
-from .live import MAX_MESSAGE_BYTES, play
+from .live import DATA_BYTES, MAX_MESSAGE_BYTES, play
 from .pictures import MAX_COLUMNS
 from .presets_file import preset_toml
 from .stream import Stream
@@ -53,7 +53,7 @@ from .work import MAX_RENDERS, Workers, modes_json, picture_json, render_wav
 
 __all__ = ["MAX_BODY_BYTES", "MAX_RENDERS", "MAX_STREAMS", "create_app", "serve"]
 
-MAX_BODY_BYTES = 16 * 1024
+MAX_BODY_BYTES = 16 * 1024 + DATA_BYTES  # settings with a recorded attack's samples fit
 MAX_DURATION_S = 20.0
 SAMPLE_RATES = (22050, 44100, 48000, 96000)
 MAX_STREAMS = 4

@@ -5,7 +5,10 @@ bowed bar percussion instruments", Proc. ICMC 1999 (barsynth spec 3.1).
 
 The modes (:func:`mode_table`) come from physics (``tuning = physics``: a uniform
 free-free bar) or from a fundamental and ratios; positions enter through mode shapes
-(:func:`mode_shapes`: the free-free bar's, or ``cos(n 2 pi x)`` around a ring).
+(:func:`mode_shapes`: the uniform free-free bar's; with ratios, those of a free-free bar
+tuned to them by its thickness profile (:func:`barsynth.physics.tuned_bar.tune_bar`),
+``cos(n 2 pi x)`` around a ring, or none at all). Each mode's output has its own gain
+(:func:`mode_gains`, ``mode_gains_db``).
 Modes above a quarter of the sample rate are muted (a loop needs at least four samples
 of delay), never folded; modes below ``LOWEST_HZ`` are left out.
 
@@ -40,6 +43,7 @@ import numpy as np
 from ...errors import ParameterError
 from ...exciters import POSITIONS_ALONG, StaticPoint, largest_deflection
 from ...physics import bar_frequencies, mode_shape
+from ...physics.tuned_bar import TOLERANCE_CENTS, tune_bar
 from .kernel import LOOP
 from .table import MAX_MODES, MIN_Q, BandedParams
 
@@ -147,11 +151,48 @@ def design_loop(frequency_hz: float, t60_s: float, sample_rate: float, *, band_q
 def mode_shapes(p: BandedParams, count: int, position: Any) -> np.ndarray:
     """Each of ``count`` modes' shape at ``position`` (a fraction of the length or of the
     circumference), normalised to a mean square of 1; for an array of positions, modes x
-    positions."""
-    if p.tuning == "physics" or p.shape == "bar":
+    positions.
+
+    ``tuning = physics``: the uniform free-free bar's bending shapes. ``tuning = ratios``:
+    ``shape = bar``, those of the free-free bar whose thickness profile puts its modes at
+    ``mode_ratios`` (:func:`tuned_bar_for`; the mode of each ratio is the bar's mode of the
+    same rank); ``ring``, ``cos(n 2 pi x)`` with n = 2, 3, ...; ``none``, 1 everywhere."""
+    if p.tuning == "physics":
         return np.array([mode_shape("free-free", n, position) for n in range(1, count + 1)], dtype=float)
+    if p.shape == "none":
+        return np.ones((count, *np.shape(position)))
+    if p.shape == "bar":
+        rank = np.argsort(np.argsort(p.mode_ratios, kind="stable"), kind="stable")
+        return tuned_bar_for(p).shapes_at(position)[rank]
     orders = np.arange(2, count + 2)
     return math.sqrt(2.0) * np.cos(np.multiply.outer(orders * 2.0 * math.pi, np.asarray(position, dtype=float)))
+
+
+def tuned_bar_for(p: BandedParams):
+    """The free-free bar tuned to ``p.mode_ratios`` (:func:`~barsynth.physics.tuned_bar.tune_bar`,
+    kept once fitted), or :class:`ParameterError` when no bar barsynth can tune has those modes
+    (every mode within ``TOLERANCE_CENTS``): the positions would then belong to no object."""
+    bar = tune_bar(p.mode_ratios)
+    if not bar.fits:
+        worst = int(np.argmax(np.abs(bar.cents)))
+        shown = ", ".join(f"{r:g}" for r in p.mode_ratios)
+        raise ParameterError(f"parameter mode_ratios = {shown} with shape = bar: no free-free bar barsynth can "
+                             f"tune has modes at these ratios (the nearest misses mode {worst + 1} by "
+                             f"{abs(bar.cents[worst]):.0f} cents); allowed: the ratios of a bar's bending modes "
+                             f"(within {TOLERANCE_CENTS:g} cent), or shape = none (positions then have no effect) "
+                             "or ring")
+    return bar
+
+
+def mode_gains(p: BandedParams, count: int) -> np.ndarray:
+    """Each of ``count`` modes' output gain, ``mode_gains_db`` as factors (1 for a mode without a
+    value). Raises :class:`ParameterError` for more values than modes."""
+    if len(p.mode_gains_db) > count:
+        raise ParameterError(f"parameter mode_gains_db has {len(p.mode_gains_db)} values for {count} modes; "
+                             "allowed: at most one gain per mode (dB)")
+    gains = np.ones(count)
+    gains[:len(p.mode_gains_db)] = 10.0 ** (np.array(p.mode_gains_db) / 20.0)
+    return gains
 
 
 def mode_table(p: BandedParams) -> tuple[np.ndarray, np.ndarray, float]:
@@ -204,7 +245,7 @@ class BankDesign:
     """The loops of every mode that sounds, and the object as an exciter sees it.
 
     ``loops``: the kernel's :data:`~.kernel.LOOP` records (their output weights are the mode
-    shapes at the pick-up, without the level); ``modes``: each loop's row in
+    shapes at the pick-up times each mode's gain, without the level); ``modes``: each loop's row in
     :func:`mode_table`; ``strike_point``: the object at the strike point (compliance and
     largest deflection per newton, m/N), for a pluck; ``level``: the output gain, ``level_db``
     as a factor (the voice applies it to the loops' sum, gliding to a new one).
@@ -249,7 +290,7 @@ def design_bank(p: BandedParams, sample_rate: float) -> BankDesign:
     loops["force_in"] = input_scale * strike / (sample_rate * mass)  # a force sample is an impulse F / fs
     loops["bow_in"] = input_scale * bow / (sample_rate * mass)
     loops["bow_at"] = bow
-    loops["out"] = pickup
+    loops["out"] = pickup * mode_gains(p, count)[modes] if p.mode_gains_db else pickup
     stiffness = mass * (2.0 * math.pi * freqs[modes]) ** 2  # N/m per mode
     along = mode_shapes(p, count, POSITIONS_ALONG)[modes]
     strike_point = StaticPoint(compliance_m_n=float(np.sum(strike ** 2 / stiffness)),

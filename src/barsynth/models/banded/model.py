@@ -6,7 +6,7 @@ import numpy as np
 
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
-from .design import mode_shapes, mode_table, playable
+from .design import mode_gains, mode_shapes, mode_table, playable
 from .table import BANDED_EXCITERS, BANDED_TABLE, BandedParams
 from .voice import BandedVoice
 
@@ -22,13 +22,15 @@ class BandedModel(Model):
 
     def describe(self, parameters: BandedParams | dict | None = None, *,
                  sample_rate: float = 48000.0) -> list[Mode]:
-        """The modes that sound: frequency (Hz), gain (strike shape x pick-up shape) and T60 (s)."""
+        """The modes that sound: frequency (Hz), gain (strike shape x pick-up shape x the mode's own
+        gain, ``mode_gains_db``) and T60 (s)."""
         p = self.resolve(parameters)
         rate = check_sample_rate(sample_rate)
         freqs, t60s, _ = mode_table(p)
         strike = mode_shapes(p, len(freqs), p.strike_position)
         pickup = mode_shapes(p, len(freqs), p.pickup_position)
-        return [Mode("mode", float(freqs[k]), float(strike[k] * pickup[k]), float(t60s[k]))
+        gains = mode_gains(p, len(freqs))
+        return [Mode("mode", float(freqs[k]), float(strike[k] * pickup[k] * gains[k]), float(t60s[k]))
                 for k in np.flatnonzero(playable(freqs, rate))]
 
 

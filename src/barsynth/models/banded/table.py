@@ -1,14 +1,15 @@
 """The banded model's one parameter table and its typed record, :class:`BandedParams`.
 
-The mallet, pluck and bow rows are the exciters' own (:mod:`barsynth.exciters`); the bar's
-material and size rows are shared with the other bar models (:mod:`barsynth.parameters`).
+The mallet, pluck, bow and recorded-attack rows are the exciters' own (:mod:`barsynth.exciters`);
+the bar's material and size rows are shared with the other bar models (:mod:`barsynth.parameters`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
-from ...exciters import STRUCK_OR_PLUCKED, Bow, Pluck, Strike
+from ...exciters import Bow, Pluck, Sample, Strike
 from ...parameters import CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
 from ..rows import bar_size_parameters, excitation_parameter, level_parameter
 
@@ -22,10 +23,20 @@ RATIOS = {"tuning": ("ratios",)}
 SOME_MODE_WITHOUT_T60 = [{**PHYSICS, "mode_t60s_s": Compare("<", "mode_count", count=True)},
                          {**RATIOS, "mode_t60s_s": Compare("<", "mode_ratios", count=True)}]
 """When ``q`` acts: while some mode has no T60 of its own in ``mode_t60s_s`` (design.mode_table)."""
+SHAPED = [PHYSICS, {"shape": ("bar", "ring")}]
+"""When a position acts: while the modes have shapes (``shape = none`` makes every mode the same
+at every point)."""
+STRUCK_PLUCKED_OR_SAMPLED = {"excitation": ("strike", "pluck", "sample")}
 
 
-BANDED_EXCITERS = (Strike, Bow, Pluck)
+BANDED_EXCITERS = (Strike, Bow, Pluck, Sample)
 """The exciters it offers, in the order of its ``excitation`` choices (the model's ``exciters``)."""
+
+
+def where_shaped(row: Parameter) -> Parameter:
+    """``row`` (a position) acting only where it acted and the modes have shapes (:data:`SHAPED`)."""
+    clauses = [dict(clause) for clause in row.when] or [{}]
+    return dataclasses.replace(row, when=[{**clause, **shaped} for clause in clauses for shaped in SHAPED])
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -43,6 +54,7 @@ class BandedParams:
     frequency_hz: float
     mode_ratios: tuple[float, ...]
     mode_t60s_s: tuple[float, ...]
+    mode_gains_db: tuple[float, ...]
     q: float
     shape: str
     mass_kg: float
@@ -59,6 +71,9 @@ class BandedParams:
     bow_force_n: float
     bow_duration_s: float
     bow_ramp_ms: float
+    attack_samples: tuple[float, ...]
+    attack_rate_hz: int
+    attack_level_db: float
     level_db: float
 
 
@@ -78,23 +93,30 @@ BANDED_TABLE = ParameterTable(
                   when=RATIOS),
         Parameter("mode_t60s_s", "s", 0.005, 120.0, (),
                   "T60 of the first modes, in order (the rest follow q)", kind=FLOATS, max_items=MAX_MODES),
+        Parameter("mode_gains_db", "dB", -120.0, 40.0, (),
+                  "output level of the first modes, in order (the rest 0 dB): a gain on what each mode gives the "
+                  "output, on top of the positions and the excitation (its decay and pitch stay)",
+                  kind=FLOATS, max_items=MAX_MODES),
         Parameter("q", "", MIN_Q, 10000.0, 300.0,
                   "quality factor of every mode without its own T60: T60 = Q ln(1000) / (pi f)", scale="log",
                   when=SOME_MODE_WITHOUT_T60),
         Parameter("shape", "", None, None, "bar",
-                  "tuning = ratios: mode shapes for positions: bar (free-free bending modes) or ring "
-                  "(cos(n 2 pi x), n = 2, 3, ... around a glass or bowl)", kind=CHOICE, choices=("bar", "ring"),
-                  when=RATIOS),
+                  "tuning = ratios: mode shapes for positions: bar (a free-free bar tuned to mode_ratios by its "
+                  "thickness profile; ratios no bar has are refused), ring (cos(n 2 pi x), n = 2, 3, ... around a "
+                  "glass or bowl) or none (every mode the same at every point: positions have no effect)",
+                  kind=CHOICE, choices=("bar", "ring", "none"), when=RATIOS),
         Parameter("mass_kg", "kg", 0.001, 100.0, 0.3, "tuning = ratios: the object's mass", scale="log", when=RATIOS),
         excitation_parameter(BANDED_EXCITERS),
-        Parameter("strike_position", "", 0.0, 1.0, 0.1,
-                  "where it is struck or plucked: fraction of the length (bar) or of the circumference (ring)",
-                  when=STRUCK_OR_PLUCKED),
-        Parameter("pickup_position", "", 0.0, 1.0, 0.0,
-                  "where its velocity is picked up, as strike_position"),
-        *Strike.parameters(),
+        where_shaped(Parameter("strike_position", "", 0.0, 1.0, 0.1,
+                               "where it is struck or plucked (a recorded attack's impulse too): fraction "
+                               "of the length (bar) or of the circumference (ring)",
+                               when=STRUCK_PLUCKED_OR_SAMPLED)),
+        where_shaped(Parameter("pickup_position", "", 0.0, 1.0, 0.0,
+                               "where its velocity is picked up, as strike_position")),
+        *Strike.parameters(also=(Sample.name,)),
         *Pluck.parameters(),
-        *Bow.parameters(),
+        *[where_shaped(row) if row.name == "bow_position" else row for row in Bow.parameters()],
+        *Sample.parameters(),
         level_parameter(),
     ],
     record=BandedParams,

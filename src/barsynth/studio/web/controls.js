@@ -1,6 +1,7 @@
 // barsynth studio: the controls, built from the chosen model's parameter table (GET /api/models):
 // a slider and a number box for a number, a <select> for a choice, a checkbox for a bool and a
-// text box for a list. A row whose "when" ({"excitation": ["bow"]}, {"vibrato_rate_hz": {"op": ">",
+// text box for a list; none for a data row ("data": a recorded attack's samples and their rate),
+// whose value the page keeps and sends as it came (from the defaults or a preset). A row whose "when" ({"excitation": ["bow"]}, {"vibrato_rate_hz": {"op": ">",
 // "than": 0}}) does not hold for the current values is greyed out: disabled, dimmed, its title
 // saying under which settings it acts (the row's "when_text", in the table's words).
 
@@ -193,7 +194,7 @@ export function buildControls() {
   for (const row of current.model.parameters) {
     for (const name of reads(row)) controllers.add(name);
   }
-  $("controls").replaceChildren(...current.model.parameters.map(makeControl));
+  $("controls").replaceChildren(...current.model.parameters.filter((row) => !row.data).map(makeControl));
 }
 
 // Every control shows the current values (a preset, the defaults), greyed out where it has no effect.
@@ -243,7 +244,7 @@ export async function typed(name, text) {
   const row = rowOf(name);
   const v = row ? parsed(row, text) : undefined;
   if (v !== undefined) {
-    controls.get(name).show(v);
+    controls.get(name)?.show(v);  // (a data row has no control)
     if (!same(v, current.values[name])) change(name, v);
     return;
   }
@@ -264,7 +265,7 @@ async function refuse(name, sent) {
   if (modelName === current.model.name && row) {
     const v = row.kind === "floats" && !Array.isArray(sent) ? parsed(row, sent) : sent;
     if (v !== undefined) {
-      controls.get(name).show(v);
+      controls.get(name)?.show(v);
       change(name, v);
     }
   }

@@ -1,6 +1,7 @@
 // barsynth studio: settings in and out: models and presets loaded (GET /api/models/.../presets/...),
 // WAV files (POST /api/render) and preset files (POST /api/preset-file) saved, and a link to the
-// current settings (the model, the preset and what differs from it, in the address).
+// current settings (the model, the preset and what differs from it, in the address; not a data row's
+// samples: they come with the preset).
 
 import { buildControls, defaults, showAll, typed } from "./controls.js";
 import { restart } from "./live.js";
@@ -102,8 +103,10 @@ function shareUrl() {
   const query = new URLSearchParams();
   query.set("model", current.model.name);
   if (studio.preset) query.set("preset", studio.preset);
-  for (const row of current.model.parameters) {
-    if (!same(current.values[row.name], current.base[row.name])) query.set(row.name, valueText(current.values[row.name]));
+  for (const row of current.model.parameters) {  // (a data row's thousands of samples stay out of a link)
+    if (!row.data && !same(current.values[row.name], current.base[row.name])) {
+      query.set(row.name, valueText(current.values[row.name]));
+    }
   }
   return `${location.origin}${location.pathname}?${query}`;
 }
