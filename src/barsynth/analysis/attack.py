@@ -11,7 +11,8 @@ loudest frame of the whole spectrum, or too few bins lie between the partials.
 
 **What it is** (spec 7.1): the residual -- the sound less its resynthesised sustained
 partials -- from the start to that end: its energy (dB re the whole sound's) and
-spectral centroid (Hz). The strike's knock, which commuted synthesis restores.
+spectral centroid (Hz). The strike's knock, which commuted synthesis restores. A residual
+below -60 dB of the sound (the click of a sudden start) is no attack.
 """
 
 from __future__ import annotations
@@ -97,13 +98,16 @@ def attack_end(x: np.ndarray, sample_rate: float, start: int, partials_hz: Seque
 
 def describe_attack(x: np.ndarray, residual: np.ndarray, sample_rate: float, start: int, end: int | None) -> Attack:
     """The attack from ``start`` to ``end`` (sample indices): the residual's energy (dB re
-    the whole sound's) and spectral centroid (Hz); :data:`NO_ATTACK` when ``end`` is None."""
+    the whole sound's) and spectral centroid (Hz); :data:`NO_ATTACK` when ``end`` is None
+    or the residual holds less than -60 dB of the sound's energy there."""
     if end is None or end <= start:
         return NO_ATTACK
     seg = residual[start:end]
     total = float(np.dot(x, x))
     energy = float(np.dot(seg, seg))
     energy_db = 10.0 * math.log10(energy / total) if energy > 0 and total > 0 else None
+    if energy_db is None or energy_db < -_BELOW_SOUND_DB:  # (the click of a sudden start)
+        return NO_ATTACK
     n = max(256, 1 << (seg.size - 1).bit_length())
     spectrum = np.fft.rfft(seg, n)
     power = spectrum.real**2 + spectrum.imag**2

@@ -36,7 +36,7 @@ import numpy as np
 
 from .bands import BandEnvelope
 from .poles import PoleFit, amplitudes, fit_poles, matrix_pencil, zoomed_pencil
-from .slopes import MIN_POINTS, Slopes, fit_slopes, smoothed_db, with_slope
+from .slopes import FLOOR_MARGIN_DB, MIN_POINTS, Slopes, fit_slopes, smoothed_db, with_slope
 
 __all__ = ["MIN_PART_T60_S", "RESOLVE_CYCLES", "Component", "Exponential", "measure_band"]
 
@@ -84,7 +84,8 @@ class Component:
 
     ``parts`` resynthesise it: their sum, except that with ``piecewise`` the one part
     decays at ``second_sigma`` after ``knee_s``. ``t60_s``, ``second_t60_s`` are None for
-    a stage that does not decay; ``sustains`` when the last stage does not.
+    a stage that does not decay; ``sustains`` when the last stage does not. One of a
+    doublet names the other's frequency in ``partner_hz``.
     """
 
     frequency_hz: float
@@ -109,6 +110,7 @@ class Component:
     coherence: float
     beats: bool = False
     doublet: bool = False
+    partner_hz: float | None = None
 
     @property
     def amplitude(self) -> float:
@@ -325,18 +327,24 @@ class _Fit:
     def doublet(self, parts: list[Exponential], coherence: float) -> list[Component]:
         """Two partials, each with its own decay; the range and quality are the band's."""
         out = []
-        for p in parts:
+        for p, other in zip(parts, parts[::-1]):
             t60 = _t60(p.sigma, self.span)
             c = self._record(
                 parts, frequency_hz=p.frequency_hz, phasor=p.phasor, parts=(p,), method="doublet",
                 t60_s=t60, knee_s=None, second_t60_s=None, second_sigma=None, piecewise=False,
-                sustains=t60 is None, coherence=coherence, doublet=True,
+                sustains=t60 is None, coherence=coherence, doublet=True, partner_hz=other.frequency_hz,
             )
-            # its own decay over the range, relative to its own level
+            # its own decay over the range (until it falls to 10 dB above the floor),
+            # relative to its own level
+            end = c.t_end
+            rate_db = p.sigma * _DB_PER_NEPER
+            if c.floor_db is not None and rate_db > 0:
+                end = min(end, max(c.t_start, self.start_s - (c.floor_db + FLOOR_MARGIN_DB) / rate_db))
             out.append(replace(
                 c,
-                start_db=-p.sigma * (c.t_start - self.start_s) * _DB_PER_NEPER,
-                end_db=-p.sigma * (c.t_end - self.start_s) * _DB_PER_NEPER,
+                t_end=end,
+                start_db=-rate_db * (c.t_start - self.start_s),
+                end_db=-rate_db * (end - self.start_s),
             ))
         return out
 

@@ -41,7 +41,7 @@ from .noise import NoiseFloor, noise_floor
 from .onset import onset_at, strike_at
 from .peaks import note_peaks
 from .pitch import choose_f0
-from .records import Decay, NoteAnalysis, NotePartial
+from .records import Attack, Decay, NoteAnalysis, NotePartial
 
 __all__ = ["MAX_CUTOFF_HZ", "MIN_SPAN_S", "MIN_T60_S", "analyze_note"]
 
@@ -130,6 +130,8 @@ class _Analysis:
         self.start_s = self.start / fs
         self.onset_s = self.onset / fs
         self.peak = float(np.max(np.abs(x))) if x.size else 0.0
+        self.band_maker: Bands | None = None
+        self.envelopes: dict[tuple[float, float], BandEnvelope] = {}
 
     def empty(self, note: str, noise: NoiseFloor | None = None) -> NoteAnalysis:
         floor = noise.rms_db if noise is not None else -math.inf
@@ -187,6 +189,7 @@ class _Analysis:
         return self.sustained(found)
 
     def envelope(self, centre: float, cutoff: float) -> BandEnvelope:
+        """The band's envelope (computed once)."""
         key = (centre, cutoff)
         if key not in self.envelopes:
             self.envelopes[key] = self.band_maker.envelope(centre, cutoff)
@@ -254,8 +257,7 @@ class _Analysis:
 
     def run(self) -> NoteAnalysis:
         x, fs = self.x, self.fs
-        peak = float(np.max(np.abs(x)))
-        if peak == 0.0:
+        if self.peak == 0.0:
             return self.empty("silent: every sample is zero")
         if (x.size - self.start) < max(64, int(MIN_DURATION_S * fs)):
             return self.empty(f"too short to analyse: {(x.size - self.start) / fs * 1000:.1f} ms after the "
@@ -265,7 +267,6 @@ class _Analysis:
         if not plan:
             return self.empty("no partials: no spectral peak stands out", noise)
         self.band_maker = Bands(x, fs, min(c for _, c, _ in plan))
-        self.envelopes: dict[tuple[float, float], BandEnvelope] = {}
         end = attack_end(x, fs, self.start, [f for f, _, _ in plan])
         comps = self.fit(plan, noise, (end if end is not None else self.start) / fs)
         attack = describe_attack(x, x - self.resynthesis(comps), fs, self.start, end)
@@ -273,20 +274,19 @@ class _Analysis:
             return dataclasses.replace(self.empty("no sustained partials", noise), attack=attack)
         return self.result(comps, attack, noise)
 
-    def result(self, comps: list[Component], attack: Any, noise: NoiseFloor) -> NoteAnalysis:
+    def result(self, comps: list[Component], attack: Attack, noise: NoiseFloor) -> NoteAnalysis:
         comps = sorted(comps, key=lambda c: c.frequency_hz)
         length = self.duration - self.start_s
         energies = [sum(p.energy(length) for p in c.parts) for c in comps]
         levels = [20.0 * math.log10(c.amplitude) for c in comps]
         choice = choose_f0([c.frequency_hz for c in comps], levels, energies, nominal_hz=self.nominal_hz)
         f0 = comps[choice.index].frequency_hz
-        # the two halves of a resolved doublet name each other (they share their range)
-        partner: dict[int, float] = {}
-        doublets = [i for i, c in enumerate(comps) if c.doublet]
-        for i in doublets:
-            others = [j for j in doublets if j != i and (comps[j].t_start, comps[j].t_end) == (comps[i].t_start, comps[i].t_end)]
-            if others:
-                partner[i] = comps[min(others, key=lambda j: abs(comps[j].frequency_hz - comps[i].frequency_hz))].frequency_hz
+        # the two halves of a resolved doublet name each other (when both are kept)
+        kept = [c.frequency_hz for c in comps]
+        partner = {
+            i: c.partner_hz for i, c in enumerate(comps)
+            if c.partner_hz is not None and any(abs(f - c.partner_hz) <= 1e-9 * f for f in kept)
+        }
         records = [self.partial(c, f0, levels[i], partner.get(i)) for i, c in enumerate(comps)]
         above = [i for i in range(len(comps)) if i >= choice.index]
         held = sum(energies[i] for i in above if records[i].t60_s is None)

@@ -29,7 +29,8 @@ class Decay:
     method
         ``"line"`` (one slope), ``"two-stage"`` (a knee: two slopes) or ``"doublet"`` (two
         damped exponentials in one band, this partial being one of them; ``t60_s`` is its
-        own, the range and quality are the band's).
+        own, the quality the band's, the range until it falls to 10 dB above the floor;
+        the partial's ``doublet_hz`` names the other, unless that one was not kept).
     t60_s
         T60 of the (first) slope, s; None when it does not decay (falls less than 1 dB
         over its span, or rises).

@@ -38,7 +38,6 @@ _KNEE_GAIN = 0.5  # a knee must at least halve the RMS deviation ...
 _KNEE_SLOPES = 1.0 / 3.0  # ... with slopes that differ by more than a third of the steeper
 _KNEE_MIN_RMS_DB = 0.25  # ... of a line that misses by more than this
 _KNEE_ABOVE_END_DB = 10.0  # ... at least this far above where the range ends (not the floor)
-_FLAT_DB = 1.0  # a stage that falls less than this over its span does not decay
 _KNEE_GRID = 64
 
 
@@ -85,22 +84,6 @@ class Slopes:
         if self.knee_s is not None and t > self.knee_s:
             y += (self.second_slope_db_s - self.slope_db_s) * (t - self.knee_s)
         return y
-
-    @property
-    def last_slope_db_s(self) -> float:
-        return self.second_slope_db_s if self.knee_s is not None else self.slope_db_s
-
-    @property
-    def decays(self) -> bool:
-        """Does the last stage fall by at least 1 dB over its span?"""
-        begin = self.knee_s if self.knee_s is not None else self.t_start
-        return -self.last_slope_db_s * (self.t_end - begin) >= _FLAT_DB
-
-    @property
-    def first_decays(self) -> bool:
-        """Does the first (or only) stage fall by at least 1 dB over its span?"""
-        end = self.knee_s if self.knee_s is not None else self.t_end
-        return -self.slope_db_s * (end - self.t_start) >= _FLAT_DB
 
 
 def smoothed_db(power: np.ndarray, noise_power: float, width: int) -> np.ndarray:
