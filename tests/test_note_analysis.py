@@ -119,7 +119,31 @@ def test_clean_decays_are_measured_exactly():
         assert p.level_db == pytest.approx(level_db(a), abs=0.05)
         assert p.t60_s == pytest.approx(t60, rel=0.002)
         assert math.cos(p.phase_rad - phase) > 0.999
+        (only,) = p.components
+        assert (only.frequency_hz, only.level_db, only.t60_s, only.phase_rad) == (
+            p.frequency_hz, p.level_db, pytest.approx(p.t60_s), p.phase_rad)
     assert [round(p.ratio, 3) for p in analysis.partials] == [1.0, 3.992, 9.981]
+
+
+def resynthesis(analysis, size):
+    """The partials' components summed from the start (a knee found in dB not followed)."""
+    t = np.arange(size) / analysis.sample_rate - analysis.start_s
+    x = np.zeros(size)
+    for p in everything(analysis):
+        for c in p.components:
+            decay = np.exp(-t * LN1000 / c.t60_s) if c.t60_s else 1.0
+            x += np.where(t >= 0, 10.0 ** (c.level_db / 20.0) * decay * np.cos(2 * math.pi * c.frequency_hz * t + c.phase_rad), 0.0)
+    return x
+
+
+@pytest.mark.parametrize("modes", [MARIMBA, [(500.0, 0.4, 0.15, 0.0), (500.0, 0.04, 3.0, 0.0)],
+                                   [(440.0, 0.3, 1.5, 0.0), (443.0, 0.25, 1.2, 1.0)]],
+                         ids=["marimba", "two-stage", "doublet"])
+def test_the_components_resynthesise_the_note(modes):
+    clean = note(modes, 44100, lead_s=0.03)
+    analysis = analyze_note(with_noise(clean), 44100)
+    error = resynthesis(analysis, clean.size) - clean
+    assert 10.0 * math.log10(np.sum(error**2) / np.sum(clean**2)) < -30.0
 
 
 def test_a_room_moves_levels_by_less_than_1_db_and_frequencies_by_less_than_a_cent():
@@ -187,6 +211,11 @@ def test_a_two_stage_decay_reports_its_knee_and_both_t60s():
     assert p.decay.knee_s == pytest.approx(knee, abs=0.01)
     assert p.level_db == pytest.approx(level_db(0.44), abs=0.5)
     assert not p.decay.sustains
+    # the two exponentials themselves, to resynthesise it
+    fast, slow = sorted(p.components, key=lambda c: c.t60_s)
+    assert (fast.t60_s, slow.t60_s) == (pytest.approx(0.15, rel=0.05), pytest.approx(3.0, rel=0.05))
+    assert (fast.level_db, slow.level_db) == (pytest.approx(level_db(0.4), abs=0.5),
+                                              pytest.approx(level_db(0.04), abs=0.5))
 
 
 def test_a_doublet_the_file_resolves_is_two_linked_partials():
@@ -292,7 +321,9 @@ def test_the_json_keeps_the_old_keys_and_adds_the_rest():
             "looped", "noise_floor_db", "attack", "partials", "below_f0", "notes"} <= set(data)
     assert set(data["attack"]) == {"duration_s", "energy_db", "centroid_hz"}
     p = data["partials"][0]
-    assert {"frequency_hz", "level_db", "t60_s", "ratio", "phase_rad", "beats", "doublet_hz", "decay"} <= set(p)
+    assert {"frequency_hz", "level_db", "t60_s", "ratio", "phase_rad", "beats", "doublet_hz", "decay",
+            "components"} <= set(p)
+    assert set(p["components"][0]) == {"frequency_hz", "level_db", "t60_s", "phase_rad"}
     assert {"method", "t60_s", "range_start_s", "range_end_s", "range_start_db", "range_end_db", "range_db",
             "floor_db", "rms_db", "r2", "points", "knee_s", "second_t60_s", "line_rms_db", "sustains"} <= set(p["decay"])
     assert data["f0_index"] == 0 and p["ratio"] == 1.0

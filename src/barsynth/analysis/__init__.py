@@ -24,12 +24,13 @@ from ..audio_io import load_audio
 from .decay import band_decay_t60
 from .note import analyze_note
 from .partial import Partial, partial_ratios
-from .records import Attack, Decay, NoteAnalysis, NotePartial
+from .records import Attack, Damped, Decay, NoteAnalysis, NotePartial
 from .plots import spectrogram
 from .search import find_partials, measure_partial
 
 __all__ = [
     "Attack",
+    "Damped",
     "Decay",
     "NoteAnalysis",
     "NotePartial",

@@ -41,7 +41,7 @@ from .noise import NoiseFloor, noise_floor
 from .onset import onset_at, strike_at
 from .peaks import note_peaks
 from .pitch import choose_f0
-from .records import Attack, Decay, NoteAnalysis, NotePartial
+from .records import Attack, Damped, Decay, NoteAnalysis, NotePartial
 
 __all__ = ["MAX_CUTOFF_HZ", "MIN_SPAN_S", "MIN_T60_S", "analyze_note"]
 
@@ -57,6 +57,7 @@ MIN_DURATION_S = 0.01  # shorter sounds (after the start) are not analysed
 WIDEN = 4.0  # a band too narrow for its partial's decay is tried this much wider
 _CANDIDATE_SEPARATION_CENTS = 30.0
 _MIN_FREQUENCY_HZ = 5.0
+_LN1000 = math.log(1000.0)
 
 
 def analyze_note(
@@ -306,10 +307,18 @@ class _Analysis:
             r2=c.r2, points=c.points, knee_s=c.knee_s, second_t60_s=c.second_t60_s,
             line_rms_db=c.line_rms_db, sustains=c.sustains,
         )
+        components = tuple(
+            Damped(
+                frequency_hz=p.frequency_hz, level_db=20.0 * math.log10(max(p.amplitude, 1e-300)),
+                t60_s=_LN1000 / p.sigma if p.sigma > 0 else None,
+                phase_rad=math.atan2(p.phasor.imag, p.phasor.real),
+            )
+            for p in c.parts
+        )
         return NotePartial(
             frequency_hz=c.frequency_hz, ratio=c.frequency_hz / f0, level_db=level_db,
             t60_s=None if c.sustains else c.t60_s, phase_rad=math.atan2(c.phasor.imag, c.phasor.real),
-            decay=decay, beats=c.beats, doublet_hz=doublet_hz,
+            decay=decay, beats=c.beats, doublet_hz=doublet_hz, components=components,
         )
 
 

@@ -14,7 +14,21 @@ from typing import Any
 from ..jsonout import json_ready
 from .partial import Partial
 
-__all__ = ["Attack", "Decay", "NoteAnalysis", "NotePartial"]
+__all__ = ["Attack", "Damped", "Decay", "NoteAnalysis", "NotePartial"]
+
+
+@dataclass(frozen=True)
+class Damped:
+    """A damped cosine from the sound's start: ``10^(level_db/20) exp(-(t - start) ln(1000) /
+    t60_s) cos(2 pi frequency_hz (t - start) + phase_rad)`` (``t60_s`` None: it holds)."""
+
+    frequency_hz: float
+    level_db: float
+    t60_s: float | None
+    phase_rad: float
+
+    def to_json(self) -> dict[str, Any]:
+        return json_ready(asdict(self))
 
 
 @dataclass(frozen=True)
@@ -107,6 +121,10 @@ class NotePartial:
         The partial beats: two components too close to resolve in this file.
     doublet_hz
         For one of a resolved doublet, the frequency of the other (Hz); else None.
+    components
+        The damped cosines (:class:`Damped`) that resynthesise it: their sum -- two for a
+        two-stage decay of two exponentials -- except that after a knee found in dB
+        (``decay.knee_s`` with one component) the decay goes on at ``decay.second_t60_s``.
     """
 
     frequency_hz: float
@@ -117,6 +135,7 @@ class NotePartial:
     decay: Decay
     beats: bool = False
     doublet_hz: float | None = None
+    components: tuple[Damped, ...] = ()
 
     def as_partial(self) -> Partial:
         """This partial as a :class:`~barsynth.analysis.Partial` (``t60_s`` inf when it
@@ -124,8 +143,9 @@ class NotePartial:
         return Partial(self.frequency_hz, self.level_db, math.inf if self.t60_s is None else self.t60_s)
 
     def to_json(self) -> dict[str, Any]:
-        out = {k: v for k, v in asdict(self).items() if k != "decay"}
+        out = {k: v for k, v in asdict(self).items() if k not in ("decay", "components")}
         out["decay"] = self.decay.to_json()
+        out["components"] = [c.to_json() for c in self.components]
         return json_ready(out)
 
 
