@@ -246,19 +246,52 @@ def test_analyze_finds_the_rendered_partials(tmp_path):
     png = tmp_path / "a.png"
     r = run("analyze", str(out), "--json", "--plot", str(png))
     assert r.exit_code == 0, r.output
-    partials = json.loads(r.stdout)["partials"]
+    data = json.loads(r.stdout)
+    partials, below = data["partials"], data["below_f0"]
     assert png.exists()
-    for p in partials:
-        assert set(p) >= {"frequency_hz", "level_db", "t60_s"}
-    found = [p["frequency_hz"] for p in partials]
+    assert data["file"] == str(out) and data["sample_rate"] == 48000 and data["duration_s"] == 3.0
+    for p in partials + below:
+        assert set(p) >= {"frequency_hz", "level_db", "t60_s", "ratio", "decay"}
+        assert p["decay"]["range_db"] > 0 and p["decay"]["rms_db"] < 1.0
+    found = [p["frequency_hz"] for p in partials + below]
     for m in modes:
         if m["gain"] > 0.05:
             nearest = min(found, key=lambda f: abs(math.log2(f / m["frequency_hz"])))
             assert abs(1200 * math.log2(nearest / m["frequency_hz"])) < 1.0, (m, nearest)
-    ratios = [p["ratio"] for p in partials]
-    assert ratios[0] == 1.0
+    # ratios are to f0, the first of the partials; what lies below it is reported apart
+    assert data["f0_hz"] == partials[0]["frequency_hz"] and partials[0]["ratio"] == 1.0
+    assert all(p["frequency_hz"] < data["f0_hz"] and p["ratio"] < 1.0 for p in below)
+    assert [p["ratio"] for p in partials] == pytest.approx([p["frequency_hz"] / data["f0_hz"] for p in partials])
     text = run("analyze", str(out)).stdout
-    assert "ratio" in text and "T60" in text
+    assert "f0:" in text and "ratio" in text and "T60" in text and "attack:" in text
+
+
+@pytest.mark.parametrize("kind", ["silence", "noise", "short"])
+def test_analyze_reports_a_file_without_a_note(tmp_path, kind):
+    rng = np.random.default_rng(0)
+    samples = {"silence": np.zeros(48000), "noise": 0.1 * rng.standard_normal(48000),
+               "short": 0.1 * rng.standard_normal(20)}[kind]
+    wav = tmp_path / f"{kind}.wav"
+    soundfile.write(wav, samples, 48000, subtype="FLOAT")
+    r = run("analyze", str(wav))
+    assert r.exit_code == 0, r.output
+    assert "f0: none" in r.stdout
+    data = json.loads(run("analyze", str(wav), "--json").stdout)
+    assert data["f0_hz"] is None and data["partials"] == [] and data["notes"]
+
+
+def test_analyze_with_a_nominal_pitch(tmp_path):
+    t = np.arange(48000) / 48000
+    decay = np.exp(-t * math.log(1000) / 1.0)
+    samples = decay * (0.01 * np.cos(2 * np.pi * 500 * t) + 0.5 * np.cos(2 * np.pi * 1378 * t))
+    wav = tmp_path / "bar.wav"
+    soundfile.write(wav, samples, 48000, subtype="FLOAT")
+    assert json.loads(run("analyze", str(wav), "--json").stdout)["f0_hz"] == pytest.approx(1378, rel=1e-4)
+    nominal = json.loads(run("analyze", str(wav), "--json", "--nominal-hz", "494").stdout)
+    assert nominal["f0_hz"] == pytest.approx(500, rel=1e-4)
+    assert nominal["partials"][1]["ratio"] == pytest.approx(2.756, rel=1e-4)
+    assert_one_line_error(run("analyze", str(wav), "--nominal-hz", "30000"), "nominal_hz")
+    assert_one_line_error(run("analyze", str(wav), "--nominal-hz", "-5"), "nominal_hz")
 
 
 def test_analyze_bad_files(tmp_path):

@@ -38,6 +38,7 @@ MODULES = [
     "barsynth.analysis.bowing",
     "barsynth.studio.presets_file",
     "barsynth.analysis.search",
+    "barsynth.analysis.note",
     "barsynth.analysis.plots",
     "barsynth.parameters",
     "barsynth.extras",

@@ -818,50 +818,86 @@ def bow_map(model_name, preset, assignments, velocity_count, force_count, durati
 
 @main.command()
 @click.argument("path", metavar="FILE", type=click.Path(path_type=Path))
-@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON (the whole note analysis).")
 @click.option("--max-partials", default=24, show_default=True, type=_Whole(1, 500), help="Most partials to report.")
+@click.option("--nominal-hz", "nominal_hz", type=_Real("Hz", minimum=0.0, minimum_exclusive=True), metavar="HZ",
+              help="The pitch the note should have (a soundfont's root key): f0 is sought near it.")
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path), metavar="PNG",
               help="Also draw a waveform + spectrogram PNG with the partials marked.")
-def analyze(path, as_json, max_partials, plot_path):
-    """Find a sound's partials: frequency, level, T60, and ratios to the lowest."""
-    import math
+def analyze(path, as_json, max_partials, nominal_hz, plot_path):
+    """Analyse a recorded note: f0, the sustained partials (ratio to f0, level, decay and how
+    it was measured), the attack, and whether the sample is looped.
 
-    from .analysis import find_partials, partial_ratios
+    \b
+    Example:
+      barsynth analyze marimba.wav --nominal-hz 261.63 --json
+    """
+    from .analysis import analyze_note
     from .audio_io import load_audio
-    from .jsonout import json_number
 
     if plot_path is not None:
         _check_writable_dir(plot_path, "plot", extensions=(".png",))
         require("plot", "--plot")
     samples, rate = load_audio(path)
-    partials = find_partials(samples, rate, max_partials=max_partials)
-    ratios = partial_ratios(partials) if partials else []
+    note = analyze_note(samples, rate, nominal_hz=nominal_hz, max_partials=max_partials)
     if plot_path is not None:
         from .analysis import plot_sound
 
-        _write_all([(plot_path, lambda tmp: plot_sound(samples, rate, tmp, title=path.name,
-                                                        partials=partials))])
+        marks = [p.as_partial() for p in (*note.below_f0, *note.partials)]
+        _write_all([(plot_path, lambda tmp: plot_sound(samples, rate, tmp, title=path.name, partials=marks))])
     if as_json:
-        _json_out({
-            "file": str(path),
-            "sample_rate": rate,
-            "duration_s": len(samples) / rate,
-            "partials": [
-                {
-                    "frequency_hz": p.frequency_hz,
-                    "level_db": json_number(p.level_db),
-                    "t60_s": json_number(p.t60_s),
-                    "ratio": float(r),
-                }
-                for p, r in zip(partials, ratios)
-            ],
-        })
+        _json_out({"file": str(path), **note.to_json()})
         return
-    click.echo(f"{path}: {len(samples) / rate:.3f} s at {rate:g} Hz, {len(partials)} partials")
-    click.echo(f"{'frequency (Hz)':>15} {'ratio':>9} {'level (dB)':>11} {'T60 (s)':>9}")
-    for p, r in zip(partials, ratios):
-        t60 = f"{p.t60_s:.3f}" if math.isfinite(p.t60_s) else ("inf" if p.t60_s > 0 else "n/a")
-        click.echo(f"{p.frequency_hz:>15.3f} {r:>9.4f} {p.level_db:>11.1f} {t60:>9}")
+    for line in _note_lines(str(path), note):
+        click.echo(line)
+
+
+def _note_lines(name: str, note: Any) -> list[str]:
+    """The text report of :func:`analyze`."""
+    def number(value: float | None, form: str, missing: str = "-") -> str:
+        return missing if value is None else format(value, form)
+
+    floor = f"{note.noise_floor_db:.1f} dB" if note.noise_floor_db is not None else "none"
+    lines = [f"{name}: {note.duration_s:.3f} s at {note.sample_rate:g} Hz; onset {note.onset_s:.4f} s, "
+             f"start {note.start_s:.4f} s; noise floor {floor}"]
+    if note.f0_hz is None:
+        lines.append(f"f0: none ({'; '.join(note.notes) or 'no sustained partials'})")
+    else:
+        how = (f"{note.f0_family} ratios explain {100.0 * note.f0_explained:.0f} % of the sustained energy"
+               if note.f0_family else "no other partial at a known ratio")
+        lines.append(f"f0: {note.f0_hz:.3f} Hz ({how})")
+    a = note.attack
+    if a.energy_db is None:
+        lines.append("attack: none")
+    else:
+        lines.append(f"attack: {1000.0 * a.duration_s:.1f} ms, {a.energy_db:.1f} dB of the energy, "
+                     f"centroid {number(a.centroid_hz, '.0f')} Hz")
+    if note.looped:
+        lines.append("looped: yes (the strongest partials do not decay within the file)")
+    if not (note.partials or note.below_f0):
+        return lines
+    lines.append(f"{'frequency (Hz)':>14} {'ratio':>8} {'level (dB)':>10} {'T60 (s)':>8} {'decay':>9} "
+                 f"{'range (dB)':>15} {'over (s)':>13} {'rms (dB)':>8}  notes")
+    for below, p in [(True, q) for q in note.below_f0] + [(False, q) for q in note.partials]:
+        d = p.decay
+        notes = []
+        if below:
+            notes.append("below f0")
+        if d.knee_s is not None:
+            after = "no decay" if d.second_t60_s is None else f"T60 {d.second_t60_s:.3f} s"
+            notes.append(f"knee {d.knee_s:.3f} s, then {after}")
+        if p.doublet_hz is not None:
+            notes.append(f"doublet with {p.doublet_hz:.3f} Hz")
+        if p.beats:
+            notes.append("beats")
+        if d.sustains:
+            notes.append("does not decay")
+        lines.append(
+            f"{p.frequency_hz:>14.3f} {p.ratio:>8.4f} {p.level_db:>10.1f} {number(p.t60_s, '.3f'):>8} "
+            f"{d.method:>9} {d.range_start_db:>6.1f} to {d.range_end_db:>5.1f} "
+            f"{d.range_start_s:>6.3f}-{d.range_end_s:<6.3f} {d.rms_db:>8.2f}  {', '.join(notes)}"
+        )
+    return lines
 
 
 @main.command()
