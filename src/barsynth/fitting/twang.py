@@ -83,8 +83,8 @@ def _cost(freqs: np.ndarray, weights: np.ndarray, modes_hz: np.ndarray, nyquist:
     """Level-weighted capped squared cents from each measured partial to its nearest audible mode,
     for each row of ``modes_hz`` (hypotheses x 18)."""
     audible = (modes_hz >= 20.0) & (modes_hz < nyquist)
-    safe = np.where(audible, modes_hz, np.inf)
-    distance = np.abs(1200.0 * np.log2(freqs[None, :, None] / safe[:, None, :]))
+    distance = np.abs(1200.0 * np.log2(freqs[None, :, None] / modes_hz[:, None, :]))
+    distance = np.where(audible[:, None, :], distance, np.inf)  # a mode nobody hears explains nothing
     nearest = np.minimum(distance.min(axis=2), CAP_CENTS)
     return (weights[None, :] * nearest ** 2).sum(axis=1) / weights.sum()
 
