@@ -779,10 +779,14 @@ def test_a_parameter_without_effect_gets_one_warning_and_still_renders(tmp_path)
     assert run("render", "banded", "--preset", "marimba", "--duration", "0.2", "-o", str(out)).stderr == ""
     # a preset file of one's own: its values that differ from the defaults count as given
     mine = tmp_path / "mine.toml"
-    mine.write_text('[parameters]\ntuning = "ratios"\nlength_m = 0.5\nbow_force_n = 3.0\nq = 200.0\n')
+    mine.write_text('[parameters]\ntuning = "ratios"\nlength_m = 0.5\nbow_force_n = 3.0\nq = 200.0\n'
+                    'mallet_hardness = 0.2\n')
     r = run("describe", "banded", "--preset", str(mine))
-    assert r.exit_code == 0
+    assert r.exit_code == 0  # (an instrument's settings for another excitation are not warned about)
     assert r.stderr == "barsynth: warning: length_m has no effect unless tuning = physics\n"
+    r = run("describe", "banded", "--preset", str(mine), "--set", "mallet_hardness=0.3", "--set", "excitation=bow")
+    assert r.stderr == ("barsynth: warning: length_m has no effect unless tuning = physics\n"  # a --set is warned
+                        "barsynth: warning: mallet_hardness has no effect unless excitation = strike\n")
 
 
 @pytest.mark.parametrize("model_name,args,warning", [

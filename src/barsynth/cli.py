@@ -342,7 +342,9 @@ def _resolve(model, preset: str | None, assignments: tuple[str, ...], *, warn_in
 
     Each parameter the user gave that has no effect under the result gets one warning line on
     stderr: every --set, and each value of their own preset file that differs from the default
-    (the studio saves every parameter); a shipped preset's values are not the user's."""
+    (the studio saves every parameter), except the settings of another excitation (an instrument
+    keeps its mallet for a strike beside its recorded attack: ``barsynth fit`` writes both); a
+    shipped preset's values are not the user's."""
     from .parameters import parse_assignments
     from .presets import preset_file_parameters, preset_parameters
 
@@ -358,7 +360,8 @@ def _resolve(model, preset: str | None, assignments: tuple[str, ...], *, warn_in
     layers.append(assigned)
     resolved = table.resolve(*layers)
     if warn_inactive:
-        given = [name for name, value in table.validate(own_file).items() if value != table[name].default]
+        given = [name for name, value in table.validate(own_file).items()
+                 if value != table[name].default and table[name].reads != ("excitation",)]
         for name, when in table.inactive(resolved, dict.fromkeys([*given, *assigned])):
             _warn(f"{name} has no effect unless {when}")
     return resolved
@@ -897,6 +900,135 @@ def _note_lines(name: str, note: Any) -> list[str]:
             f"{d.method:>9} {d.range_start_db:>6.1f} to {d.range_end_db:>5.1f} "
             f"{d.range_start_s:>6.3f}-{d.range_end_s:<6.3f} {d.rms_db:>8.2f}  {', '.join(notes)}"
         )
+    return lines
+
+
+FIT_OPTIONS = {"banded": {"excitation": ("sample", "strike")},
+               "twang": {"material": None, "thickness_m": float, "length_m": float},
+               "fd": {"material": None, "thickness_m": float, "width_m": float, "bc": None}}
+"""What ``fit --set`` takes per model: a choice, a number, or (None) a word the fit checks."""
+
+
+def _fit_options(model: str, assignments: tuple[str, ...]) -> dict[str, Any]:
+    from .checks import check_number, show_value
+
+    known = FIT_OPTIONS[model]
+    options: dict[str, Any] = {}
+    for text in assignments:
+        name, sep, value = text.partition("=")
+        name = name.strip()
+        if not sep or name not in known:
+            allowed = ", ".join(f"{k}=..." for k in known)
+            raise ParameterError(f"parameter set = {show_value(text)} is not allowed for fit --model {model}; "
+                                 f"allowed: NAME=VALUE with NAME one of {allowed}")
+        kind = known[name]
+        if isinstance(kind, tuple):
+            if value not in kind:
+                raise ParameterError(f"parameter {name} = {show_value(value)} is not a known choice; allowed: "
+                                     f"one of {', '.join(kind)}")
+            options[name] = value
+        elif kind is float:
+            options[name] = check_number(name, value, "m", minimum=0.0, minimum_exclusive=True, parse_text=True)
+        else:
+            options[name] = value.strip()
+    if "material" in options:
+        from .physics import material
+
+        material(options["material"])  # one line for an unknown material
+    if "bc" in options:
+        from .physics import BOUNDARY_CONDITIONS
+
+        if options["bc"] not in BOUNDARY_CONDITIONS:
+            raise ParameterError(f"parameter bc = {show_value(options['bc'])} is not a known choice; allowed: one "
+                                 f"of {', '.join(BOUNDARY_CONDITIONS)}")
+    return options
+
+
+@main.command()
+@click.argument("path", metavar="RECORDING", type=click.Path(path_type=Path))
+@click.option("--model", "model_name", default="banded", show_default=True,
+              type=_Choice(("banded", "twang", "fd"), label="model"), help="The model to fit.")
+@click.option("--max-modes", default=12, show_default=True, type=_Whole(1, 24, "modes"),
+              help="Most partials to fit as modes (banded).")
+@click.option("--nominal-hz", "nominal_hz", type=_Real("Hz", minimum=0.0, minimum_exclusive=True), metavar="HZ",
+              help="The pitch the note is meant to have (e.g. a soundfont's root key), to settle f0.")
+@click.option("--set", "-s", "assignments", multiple=True, metavar="NAME=VALUE",
+              help="What the fit is given: banded excitation=sample|strike; twang material=, thickness_m= or "
+                   "length_m=; fd material=, thickness_m=, width_m=, bc= (repeatable).")
+@click.option("-o", "--output", required=True, type=click.Path(path_type=Path), metavar="PRESET.toml",
+              help="The preset file to write.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print JSON: the parameters and, per partial, recording against resynthesis.")
+@click.option("--plot", "plot_path", type=click.Path(path_type=Path), metavar="PNG",
+              help="Draw recording and resynthesis side by side (spectrograms, partials).")
+@click.option("--render", "render_path", type=click.Path(path_type=Path), metavar="OUT.wav",
+              help="Also write the resynthesis (at the recording's rate and peak).")
+def fit(path, model_name, max_modes, nominal_hz, assignments, output, as_json, plot_path, render_path):
+    """Fit a model to a recording and write a preset that sounds like it.
+
+    The recording is analysed (as `barsynth analyze`), the model fitted to its partials, the fit
+    rendered and compared with the recording partial by partial; the spectral distance (spec 7.3)
+    is reported against that of one decaying sine at f0.
+
+    \b
+    Examples:
+      barsynth fit marimba.wav -o marimba.toml --render again.wav
+      barsynth render banded --preset marimba.toml --set frequency_hz=440 -o a4.wav
+      barsynth fit ruler.wav --model twang --set material=acrylic -o ruler.toml --json
+    """
+    from .audio_io import load_audio, output_format, output_subtype, write_audio
+    from .checks import check_extension
+    from .fitting import fit_recording
+
+    options = _fit_options(model_name, assignments)
+    _check_writable_dir(output, "output", extensions=(".toml",))
+    if plot_path is not None:
+        _check_writable_dir(plot_path, "plot", extensions=(".png",))
+        require("plot", "--plot")
+    if render_path is not None:
+        _check_writable_dir(render_path, "render")
+        check_extension(render_path, "parameter render =", (".wav", ".flac", ".ogg"))
+    samples, rate = load_audio(path)
+    result = fit_recording(samples, rate, model=model_name, max_modes=max_modes, nominal_hz=nominal_hz,
+                           options=options)
+    text = result.preset_toml()
+    jobs: list[tuple[Path, Any]] = [(output, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))]
+    heard = result.heard()
+    if render_path is not None:
+        fmt = output_format(render_path)
+        subtype = output_subtype(fmt, "PCM_24", rate, render_path.suffix)
+        jobs.append((render_path, lambda tmp: write_audio(tmp, heard, rate, fmt=fmt, subtype=subtype)))
+    if plot_path is not None:
+        from .fitting.plots import plot_fit
+
+        jobs.append((plot_path, lambda tmp: plot_fit(result, tmp, title=path.name)))
+    _write_all(jobs)
+    if as_json:
+        _json_out({"file": str(path), "preset": str(output), **result.to_json()})
+        return
+    for line in _fit_lines(str(path), str(output), result):
+        click.echo(line)
+
+
+def _fit_lines(name: str, preset: str, result: Any) -> list[str]:
+    """The text report of :func:`fit`."""
+    def number(value: float | None, form: str) -> str:
+        return "-" if value is None else format(value, form)
+
+    verdict = "at most half the sine's: good" if result.distance_db <= 0.5 * result.baseline_db else (
+        "closer than one sine" if result.distance_db < result.baseline_db else "no closer than one sine")
+    lines = [f"{name}: {result.model} fitted, f0 {result.analysis.f0_hz:.3f} Hz; wrote {preset}",
+             f"spectral distance {result.distance_db:.2f} dB (one decaying sine at f0: {result.baseline_db:.2f} dB; "
+             f"{verdict})",
+             f"{'recording (Hz)':>14} {'level (dB)':>10} {'T60 (s)':>8}   {'fit (Hz)':>10} {'cents':>7} "
+             f"{'dB':>6} {'T60 %':>7}"]
+    for c in result.comparison:
+        t60 = None if c.t60_error is None else 100.0 * c.t60_error
+        lines.append(f"{c.frequency_hz:>14.3f} {c.level_db:>10.1f} {number(c.t60_s, '.3f'):>8}   "
+                     f"{number(c.resynthesis_hz, '.3f'):>10} {number(c.cents, '+.2f'):>7} "
+                     f"{number(c.level_error_db, '+.1f'):>6} {number(t60, '+.1f'):>7}")
+    shown = {k: v for k, v in result.parameters.items() if k != "attack_samples"}
+    lines.append("parameters: " + ", ".join(f"{k}={_shown(v)}" for k, v in shown.items()))
     return lines
 
 

@@ -1,0 +1,223 @@
+"""Fitting the finite-difference bar to a recording: the physical bar whose modes match it.
+
+A physics inversion (spec 7.2): the bar's material, length, thickness and undercut depth,
+found by least squares on the log-frequencies of the recording's sustained partials, each
+mode's residual reported in cents. Frequencies alone cannot tell the material, the length and
+the thickness apart (a bar's modes scale with ``sqrt(E/rho) h / L^2``), so:
+
+* the **material** is given, or chosen as the one whose typical Q (``barsynth materials``) is
+  nearest, on a log scale, to the Q the recording's partials decay with (a metal rings for
+  thousands of cycles, a wood for about a hundred): a guess the user can override;
+* the **thickness** is given (or the model's default), and the **length** follows from the
+  frequencies in closed form (a profile's modes scale exactly as ``1 / L^2``);
+* the **undercut** (parabolic or circular, its depth, and its width where three or more
+  partials tell it, as tuned bars are made) sets the ratios: searched first (bounded), with the
+  modes of each profile from the grid operator (:func:`barsynth.physics.grid.grid_modes`); a
+  uniform bar (depth 0) is kept unless an undercut brings the partials clearly closer;
+* the **losses** ``sigma0`` and ``sigma1`` (decay rate ``sigma0 + sigma1 k^2``, ``k`` the
+  mode's wavenumber) by non-negative least squares on the partials' decay rates.
+
+Each measured partial is matched to the nearest mode (capped at 100 cents); a partial no
+mode comes near (a torsional mode, a resonator's, a hum) is reported unmatched.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..physics import materials as all_materials
+from .targets import Target, cents, strongest
+
+__all__ = ["FdFit", "fit_fd"]
+
+CAP_CENTS = 100.0
+MODES = 10  # modes of the model the partials may be matched to
+GRID_POINTS = 60  # nodes of the grid the search uses (extrapolated: about 0.01 cent)
+PROFILE_KINDS = ("parabolic", "circular")
+SETTLED_CENTS = 0.5  # a uniform bar this close (rms, cents) is not undercut
+IMPROVEMENT_CENTS = 1.0  # an undercut must bring the rms this much closer
+DEPTH_GRID = np.linspace(0.0, 0.9, 19)
+LN1000 = math.log(1000.0)
+
+
+@dataclass(frozen=True)
+class ModeMatch:
+    """A measured partial, the bar's mode it was matched to (1-based) and that mode's frequency."""
+
+    target: Target
+    number: int
+    model_hz: float
+
+    @property
+    def cents(self) -> float:
+        """The model's mode against the partial (cents; positive: the model is sharp)."""
+        return float(cents(self.model_hz, self.target.frequency_hz))
+
+
+@dataclass(frozen=True)
+class FdFit:
+    """The fitted bar: parameters (the fd table's names) and each partial's match."""
+
+    parameters: dict[str, Any]
+    matches: tuple[ModeMatch, ...]
+    unmatched: tuple[Target, ...] = field(default=())
+    material_chosen_by_q: bool = False
+
+    @property
+    def rms_cents(self) -> float:
+        return float(np.sqrt(np.mean([m.cents ** 2 for m in self.matches]))) if self.matches else math.nan
+
+
+def _q_of(targets: list[Target]) -> float | None:
+    qs = [math.pi * t.frequency_hz * t.t60_s / LN1000 for t in targets
+          if t.t60_s is not None and math.isfinite(t.t60_s) and t.t60_s > 0]
+    return float(np.median(qs)) if qs else None
+
+
+def _choose_material(q: float | None) -> str:
+    known = {name: m.typical_q for name, m in all_materials().items() if m.typical_q}
+    if q is None:
+        return "aluminium"
+    return min(known, key=lambda name: abs(math.log(known[name] / q)))
+
+
+@lru_cache(maxsize=1024)
+def _shape_ratios(bc: str, depth: float, width: float, kind: str = "parabolic") -> tuple[float, ...]:
+    """The bar's first MODES frequencies (of a reference bar: only the ratios and the scale law
+    matter), for an undercut ``depth`` (fraction of the thickness) over ``width`` of the length."""
+    from ..physics.grid import grid_modes
+    from ..physics.profiles import Profile
+
+    profile = None if depth <= 0.0 else Profile(kind, depth=depth, width=width)
+    f = grid_modes(youngs_modulus_pa=1e10, density_kg_m3=1000.0, length_m=1.0, thickness_m=0.01, bc=bc,
+                   count=MODES, profile=profile, points=GRID_POINTS)
+    return tuple(float(v) for v in f)
+
+
+def _reference_scale() -> float:
+    """``sqrt(E/rho) h / L^2`` of the reference bar of :func:`_shape_ratios`."""
+    return math.sqrt(1e10 / 1000.0) * 0.01 / 1.0 ** 2
+
+
+def _match(targets: list[Target], modes_hz: np.ndarray) -> tuple[list[ModeMatch], list[Target]]:
+    matches, unmatched, used = [], [], set()
+    for t in sorted(targets, key=lambda t: -t.level_db):  # the strongest choose first
+        distance = np.abs(cents(t.frequency_hz, modes_hz))
+        for k in used:
+            distance[k] = np.inf
+        k = int(np.argmin(distance))
+        if distance[k] <= CAP_CENTS:
+            matches.append(ModeMatch(t, k + 1, float(modes_hz[k])))
+            used.add(k)
+        else:
+            unmatched.append(t)
+    return sorted(matches, key=lambda m: m.number), unmatched
+
+
+def _scale_for(targets: list[Target], ratios: np.ndarray) -> tuple[float, float]:
+    """The frequency scale (Hz of the reference bar's mode list x scale) that best fits the
+    partials to the modes ``ratios`` (each partial to its nearest mode), and the level-weighted
+    mean squared cents. The lowest partial is the bar's first mode (the fit is given the note's
+    partials from its fundamental up): else two partials fit any undercut deep enough."""
+    freqs = np.array([t.frequency_hz for t in targets])
+    weights = 10.0 ** ((np.array([t.level_db for t in targets]) - max(t.level_db for t in targets)) / 40.0)
+    scale = freqs.min() / ratios[0]
+    distance = cents(freqs[:, None], scale * ratios[None, :])
+    nearest = np.abs(distance).argmin(axis=1)
+    close = np.abs(distance[np.arange(freqs.size), nearest]) <= CAP_CENTS
+    if close.any():  # refine: the weighted mean of log-frequency offsets of the matched partials
+        offset = np.average(distance[np.arange(freqs.size), nearest][close], weights=weights[close])
+        scale *= 2.0 ** (offset / 1200.0)
+        d = np.abs(cents(freqs[:, None], scale * ratios[None, :])).min(axis=1)
+        score = float((weights * np.minimum(d, CAP_CENTS) ** 2).sum() / weights.sum())
+    return scale, score
+
+
+def _losses(matches: list[ModeMatch], wave_constant: float) -> tuple[float, float]:
+    """``(sigma0, sigma1)`` (1/s, m^2/s) from the matched partials' decay rates by non-negative
+    least squares, rate = sigma0 + sigma1 k^2 with k^2 = omega / a (a uniform bar's relation)."""
+    from scipy.optimize import nnls
+
+    rows, rates = [], []
+    for m in matches:
+        t60 = m.target.t60_s
+        if t60 is not None and math.isfinite(t60) and t60 > 0:
+            rows.append([1.0, 2.0 * math.pi * m.model_hz / wave_constant])
+            rates.append(LN1000 / t60)
+    if not rows:
+        return 1.0, 0.002  # the model's defaults
+    solution, _ = nnls(np.array(rows), np.array(rates))
+    return float(solution[0]), float(solution[1])
+
+
+def fit_fd(targets: list[Target], *, material: str | None = None, thickness_m: float | None = None,
+           width_m: float | None = None, bc: str = "free-free", undercut_width: float = 0.6,
+           fit_undercut: bool = True) -> FdFit:
+    """The bar whose modes best match ``targets`` (see the module docstring)."""
+    from scipy.optimize import minimize, minimize_scalar
+
+    from ..models.fd.table import FD_TABLE
+    from ..physics import bending_wave_constant, material as find_material
+
+    kept = strongest(targets, within_db=40.0, at_most=MODES)
+    if not kept:
+        raise ParameterError("the recording has no sustained partial to fit a bar to; allowed: a recording with at "
+                             "least one partial above 20 Hz")
+    row = {p.name: p for p in FD_TABLE}
+    chosen = material is None
+    name = _choose_material(_q_of(kept)) if chosen else material
+    mat = find_material(name)
+    h = thickness_m if thickness_m is not None else row["thickness_m"].default
+    width = width_m if width_m is not None else row["width_m"].default
+
+    def cost(depth: float, cut_width: float = undercut_width, kind: str = "parabolic") -> float:
+        return _scale_for(kept, np.array(_shape_ratios(bc, round(depth, 4), round(cut_width, 4), kind)))[1]
+
+    depth, cut_width, kind = 0.0, undercut_width, "parabolic"
+    plain = cost(0.0)
+    if fit_undercut and bc == "free-free" and len(kept) >= 2 and plain > SETTLED_CENTS ** 2:
+        best = (plain, 0.0, undercut_width, "parabolic")
+        for shape in PROFILE_KINDS:
+            # a coarse look over the depths first (the cost has several valleys), then the best refined
+            coarse = min((cost(d, undercut_width, shape), d) for d in DEPTH_GRID)
+            low, high = max(0.0, coarse[1] - 0.05), min(0.9, coarse[1] + 0.05)
+            found = minimize_scalar(lambda d: cost(d, undercut_width, shape), bounds=(low, high), method="bounded",
+                                    options={"xatol": 1e-4})
+            candidate = (float(found.fun), round(float(found.x), 4), undercut_width, shape)
+            if len(kept) >= 3:  # the width too, where three or more partials tell it
+                found = minimize(lambda x: cost(x[0], x[1], shape), [candidate[1], undercut_width],
+                                 method="Nelder-Mead", bounds=[(0.0, 0.9), (0.2, 1.0)],
+                                 options={"xatol": 1e-4, "fatol": 1e-4, "maxfev": 200})
+                if found.fun < candidate[0]:
+                    candidate = (float(found.fun), round(float(found.x[0]), 4), round(float(found.x[1]), 4), shape)
+            best = min(best, candidate, key=lambda c: c[0])
+        if best[0] < plain - IMPROVEMENT_CENTS ** 2:  # only an undercut that clearly explains more
+            _, depth, cut_width, kind = best
+    ratios = np.array(_shape_ratios(bc, depth, cut_width, kind))
+    scale, _ = _scale_for(kept, ratios)
+    # modes of the reference bar are `ratios` (Hz); ours are `scale` times them: frequencies go as
+    # sqrt(E/rho) h / L^2, so L = sqrt(reference scale law x ... ) in closed form
+    length = math.sqrt(math.sqrt(mat.youngs_modulus_pa / mat.density_kg_m3) * h / (_reference_scale() * scale))
+    for label, value in (("length_m", length), ("thickness_m", h)):
+        p = row[label]
+        if not p.minimum <= value <= p.maximum:
+            raise ParameterError(
+                f"a {name} bar {h * 1000:.3g} mm thick would need {label} = {value:.4g} {p.unit} to ring as recorded, "
+                f"out of range; allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material or thickness)")
+    modes_hz = scale * ratios
+    matches, unmatched = _match(kept, modes_hz)
+    a = bending_wave_constant(mat.youngs_modulus_pa, mat.density_kg_m3, h)
+    sigma0, sigma1 = _losses(matches, a)
+    sigma0 = float(min(max(sigma0, row["sigma0_per_s"].minimum), row["sigma0_per_s"].maximum))
+    sigma1 = float(min(max(sigma1, row["sigma1_m2_s"].minimum), row["sigma1_m2_s"].maximum))
+    parameters: dict[str, Any] = {"material": name, "length_m": length, "thickness_m": h, "width_m": width, "bc": bc,
+                                  "sigma0_per_s": sigma0, "sigma1_m2_s": sigma1}
+    if depth > 0.0:
+        parameters.update(profile=kind, undercut_depth=depth, undercut_width=cut_width)
+    return FdFit(parameters, tuple(matches), tuple(unmatched), chosen)
