@@ -166,6 +166,44 @@ def test_a_slow_body_is_dropped_and_a_mid_body_disconnect_leaves_no_traceback(st
         [r.getMessage() for r in records]
 
 
+def test_uploads_are_bounded_and_slow_or_abandoned_ones_free_their_turns(studio):
+    """POST /api/fit: a declared body over the upload limit gets 413 at once, unread; uploads that
+    stall (more of them than MAX_UPLOADS) are dropped after the body timeout, one over the cap gets
+    503 meanwhile, and their turns come back: the next upload is read and answered."""
+    from barsynth.studio.fitted import MAX_UPLOAD_BYTES
+
+    port = studio[0]
+    head = ("POST /api/fit?name=x.wav HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: audio/wav\r\n"
+            "Content-Length: {}\r\n\r\n")
+    answer = exchange(port, head.format(MAX_UPLOAD_BYTES + 1).encode())
+    assert answer.startswith(b"HTTP/1.1 413") and f"up to {MAX_UPLOAD_BYTES} bytes".encode() in answer
+    with logged() as records:
+        stalled = []
+        try:
+            for _ in range(studio_server.MAX_UPLOADS):
+                client = socket.create_connection(("127.0.0.1", port), timeout=WAIT_S)
+                client.sendall(head.format(1_000_000).encode() + b"RIFF")
+                stalled.append(client)
+            until = time.monotonic() + WAIT_S
+            while True:  # (415 until the server has taken every stalled upload in)
+                answer = exchange(port, head.format(8).encode() + b"RIFFRIFF")
+                if answer.startswith(b"HTTP/1.1 503") or time.monotonic() > until:
+                    break
+                time.sleep(0.05)
+            assert answer.startswith(b"HTTP/1.1 503") and b"recordings at once" in answer
+            for client in stalled:
+                assert client.recv(100) == b""  # body_timeout_s = 1 here
+        finally:
+            for client in stalled:
+                client.close()
+        time.sleep(0.3)
+        answer = exchange(port, head.format(8).encode() + b"RIFFRIFF")
+        assert answer.startswith(b"HTTP/1.1 415") and b"cannot be read as WAV, FLAC or OGG" in answer
+        assert status(port, "127.0.0.1") == 200
+    assert not [r for r in records if r.exc_info or r.levelno >= logging.WARNING], \
+        [r.getMessage() for r in records]
+
+
 def _raise_nofile(wanted: int) -> None:
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
     if soft != resource.RLIM_INFINITY and soft < wanted:

@@ -747,3 +747,110 @@ def test_a_material_sets_youngs_modulus_and_density(browser, studio):
     context.close()
 
 
+
+
+FIT_S = 180.0  # how long a fit may take: a worker at nice 10 on a loaded machine
+DROP_FILE = """(b64) => {
+  const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+  const transfer = new DataTransfer();
+  transfer.items.add(new File([bytes], "note.wav", { type: "audio/wav" }));
+  return transfer;
+}"""
+
+
+def struck_note(rate: int = 44100) -> bytes:
+    """A WAV of a struck note: 440 Hz and partials at 2.76 and 5.4 times it, after 45 ms of quiet."""
+    t = np.arange(int(1.5 * rate)) / rate
+    x = sum(a * np.exp(-t * math.log(1000.0) / t60) * np.sin(2 * np.pi * f * t)
+            for f, a, t60 in [(440.0, 0.5, 1.2), (440.0 * 2.76, 0.25, 0.6), (440.0 * 5.4, 0.1, 0.3)])
+    buffer = io.BytesIO()
+    soundfile.write(buffer, np.concatenate([np.zeros(int(0.045 * rate)), 0.8 * x]), rate, format="WAV",
+                    subtype="PCM_16")
+    return buffer.getvalue()
+
+
+def test_a_recording_dropped_on_the_page_is_fitted_loaded_and_played_against_its_fit(browser, studio, shots,
+                                                                                     tmp_path):
+    import base64
+
+    errors: list[str] = []
+    context, page = open_studio(browser, studio.url, errors)
+    expect(page.locator("#fit-model option")).to_have_count(3)
+    expect(page.locator("#fit-result")).to_be_hidden()
+
+    # Dropped anywhere on the page (here on the pictures): the page shows it is taking the file,
+    # then fits it.
+    transfer = page.evaluate_handle(DROP_FILE, base64.b64encode(struck_note()).decode())
+    page.dispatch_event("#pictures", "dragenter", {"dataTransfer": transfer})
+    page.dispatch_event("#pictures", "dragover", {"dataTransfer": transfer})
+    assert "dropping" in page.get_attribute("body", "class")
+    page.dispatch_event("#pictures", "drop", {"dataTransfer": transfer})
+    assert "dropping" not in (page.get_attribute("body", "class") or "")
+    until(page, "() => studio.fit.state !== 'idle'", 10, "the fit to start")
+    until(page, "() => studio.fit.state !== 'fitting'", FIT_S, "the fit")
+    assert page.evaluate("() => studio.fit.state") == "done", page.evaluate("() => studio.errors")
+
+    # The fitted settings are in the controls, as a preset's would be: banded, 440 Hz, its ratios.
+    result = page.evaluate("() => studio.fit.result")
+    assert result["model"] == "banded" and result["partials"] == 3 and result["distanceDb"] < result["baselineDb"]
+    expect(page.locator("#model")).to_have_value("banded")
+    expect(page.locator("#preset")).to_have_value("(fitted)")
+    expect(page.locator("#preset option:checked")).to_have_text("(fitted: note.wav)")
+    expect(page.locator("#num-frequency_hz")).to_have_value("440")
+    assert page.input_value("#param-mode_ratios").startswith("1,2.7")
+    expect(page.locator("#param-excitation")).to_have_value("sample")
+    values = page.evaluate("() => studio.values")
+    assert values["attack_rate_hz"] == 44100 and len(values["attack_samples"]) > 800  # kept, with no control
+    pictures_of(page, "banded", "frequency_hz", values["frequency_hz"])
+
+    # The A/B panel: the distance, the partials' table and both spectrograms, painted.
+    expect(page.locator("#fit-result")).to_be_visible()
+    expect(page.locator("#fit-distance")).to_contain_text("spectral distance")
+    rows = page.locator("#fit-table tbody tr").evaluate_all(
+        "rows => rows.map(r => [...r.cells].map(c => c.textContent.trim()))")
+    assert [r[1] for r in rows] == ["440.00", "1214.40", "2376.00"]
+    assert all(abs(float(r[5])) < 2.0 for r in rows)  # cents
+    for canvas in ("#fit-spec-recording", "#fit-spec-resynthesis"):
+        colours = page.locator(canvas).evaluate("""(c) => {
+          const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+          const seen = new Set();
+          for (let i = 0; i < d.length; i += 4 * 97) seen.add(d[i] << 16 | d[i + 1] << 8 | d[i + 2]);
+          return seen.size; }""")
+        assert colours > 20
+    assert result["spectrogramHashes"][0] != result["spectrogramHashes"][1]
+
+    # A and B play: samples reach the page's audio output (its analyser), the recording by button,
+    # the resynthesis by key; each press starts its own sound.
+    page.click("#play-recording")
+    until(page, "() => studio.fit.heardPeak.recording > 0.1", NEW_BLOCKS_S, "the recording to sound")
+    page.locator("body").click(position={"x": 5, "y": 880})
+    page.keyboard.press("b")
+    until(page, "() => studio.fit.heardPeak.resynthesis > 0.1", NEW_BLOCKS_S, "the resynthesis to sound")
+    assert page.evaluate("() => studio.fit.plays") == {"recording": 1, "resynthesis": 1}
+    assert page.evaluate("() => studio.fit.playing") in ("resynthesis", None)
+    shots(page, "09-fit")
+
+    # The live sound plays the fitted settings (the recorded attack too), at another pitch as well.
+    page.click("#play")
+    until(page, "() => studio.blocksReceived > 20 && studio.samplesPlayed > 9600", NEW_BLOCKS_S, "the fit played live")
+    assert page.evaluate("() => studio.fit.playing") is None  # the A/B player stopped for it
+    page.fill("#num-frequency_hz", "330")
+    page.press("#num-frequency_hz", "Enter")
+    until(page, "() => studio.heardSetId >= 1 || (studio.lastSet && studio.lastSet.parameters.frequency_hz === 330)",
+          NEW_BLOCKS_S, "the new pitch sent")
+    grows(page, "blocksReceived", NEW_BLOCKS_S, 20)
+    pictures_of(page, "banded", "frequency_hz", 330)
+    page.keyboard.press("Escape")
+    until(page, "() => studio.state === 'idle'", NEW_BLOCKS_S)
+    assert page.evaluate("() => studio.errors") == []
+
+    # A file that is no sound, chosen with the file button: the server's one line, and the page goes on.
+    bad = tmp_path / "bad.wav"
+    bad.write_text("not a sound at all\n" * 20)
+    page.set_input_files("#fit-file", str(bad))
+    until(page, "() => studio.fit.state === 'failed'", FIT_S, "the refusal")
+    expect(page.locator("#message")).to_contain_text("audio file bad.wav: cannot be read as WAV, FLAC or OGG")
+    expect(page.locator("#fit-status")).to_contain_text("no fit")
+    expect(page.locator("#num-frequency_hz")).to_have_value("330")  # the settings stay
+    assert errors == []
+    context.close()

@@ -134,7 +134,7 @@ def test_the_page_and_its_files_are_served_with_their_types(client):
     page = client.get("/")
     assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
     assert "default-src 'self'" in page.headers["content-security-policy"]
-    scripts = ["app.js", "page.js", "controls.js", "live.js", "plots.js", "files.js", "worklet.js", "link.js"]
+    scripts = ["app.js", "page.js", "controls.js", "live.js", "plots.js", "files.js", "fit.js", "worklet.js", "link.js"]
     for name, kind in [*((name, "text/javascript") for name in scripts), ("style.css", "text/css")]:
         r = client.get(f"/static/{name}")
         assert r.status_code == 200 and r.headers["content-type"].startswith(kind) and r.content

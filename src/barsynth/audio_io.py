@@ -11,13 +11,14 @@ from pathlib import Path
 from typing import Any
 
 from .checks import check_extension, show_text
-from .errors import AudioFileError, ParameterError
+from .errors import AudioFileError, AudioFormatError, ParameterError
 
 __all__ = [
     "AUDIO_FORMATS",
     "MAX_OGG_RATE",
     "MIN_AUDIO_RATE_HZ",
     "SUBTYPES",
+    "audio_from_bytes",
     "load_audio",
     "output_format",
     "output_subtype",
@@ -36,7 +37,7 @@ def load_audio(path: str | os.PathLike[str]) -> tuple[Any, float]:
 
     Channels are averaged. Raises :class:`~barsynth.errors.AudioFileError` (one line,
     naming the file) when the file is missing, unreadable, empty or of a kind
-    libsndfile does not know.
+    libsndfile does not know (that last: :class:`~barsynth.errors.AudioFormatError`).
     """
     import numpy as np
     import soundfile
@@ -52,20 +53,97 @@ def load_audio(path: str | os.PathLike[str]) -> tuple[Any, float]:
         data, rate = soundfile.read(name, dtype="float64", always_2d=True)
     except (RuntimeError, soundfile.SoundFileError, OSError, ValueError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise AudioFileError(
+        raise AudioFormatError(
             f"audio file {show_text(name)}: cannot be read as WAV, FLAC or OGG ({reason})"
         ) from None
     if data.shape[0] == 0:
         raise AudioFileError(f"audio file {show_text(name)}: contains no samples")
+    _check_rate(name, rate)
+    mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0].copy()
+    _check_finite(name, mono)
+    return mono, float(rate)
+
+
+READ_BLOCK_VALUES = 1 << 20  # samples (all channels) decoded at a time by audio_from_bytes
+
+
+def audio_from_bytes(data: bytes, *, name: str = "upload", max_duration_s: float | None = None,
+                     max_rate_hz: float | None = None) -> tuple[Any, float]:
+    """Read a WAV, FLAC or OGG file held in memory (``data``, its bytes) as :func:`load_audio` reads
+    a file: mono float64 samples (channels averaged) and the sample rate (Hz), with the same one-line
+    :class:`~barsynth.errors.AudioFileError` naming ``name`` (an upload's file name, say).
+
+    Bytes that are not such a file raise :class:`~barsynth.errors.AudioFormatError` (an
+    AudioFileError). ``max_duration_s`` and ``max_rate_hz`` bound what is decoded: both are checked
+    from the file's header before any sample is, and the length again while decoding (a header that
+    lies), so a small compressed file cannot unpack into more than that. Nothing is written to disk.
+    """
+    import io
+
+    import numpy as np
+    import soundfile
+
+    if not data:
+        raise AudioFileError(f"audio file {show_text(name)}: is empty (0 bytes)")
+    try:
+        sound = soundfile.SoundFile(io.BytesIO(data))
+    except (RuntimeError, soundfile.SoundFileError, OSError, ValueError) as exc:
+        raise AudioFormatError(f"audio file {show_text(name)}: cannot be read as WAV, FLAC or OGG "
+                               f"({_reason(exc)})") from None
+    with sound:
+        rate, channels = float(sound.samplerate), int(sound.channels)
+        _check_rate(name, rate)
+        if max_rate_hz is not None and rate > max_rate_hz:
+            raise AudioFileError(f"audio file {show_text(name)}: sample rate {rate:g} Hz is too high; allowed: up to "
+                                 f"{max_rate_hz:g} Hz")
+        most = None if max_duration_s is None else int(np.floor(max_duration_s * rate))
+        if most is not None and sound.frames > most:
+            raise _too_long(name, sound.frames / rate, max_duration_s)
+        block = max(1, READ_BLOCK_VALUES // max(1, channels))
+        parts, frames = [], 0
+        try:
+            while True:
+                chunk = sound.read(block, dtype="float64", always_2d=True)
+                if chunk.shape[0] == 0:
+                    break
+                frames += chunk.shape[0]
+                if most is not None and frames > most:
+                    raise _too_long(name, frames / rate, max_duration_s, "at least ")
+                parts.append(chunk.mean(axis=1) if channels > 1 else chunk[:, 0].copy())
+        except (RuntimeError, soundfile.SoundFileError, ValueError) as exc:
+            raise AudioFormatError(f"audio file {show_text(name)}: cannot be read as WAV, FLAC or OGG "
+                                   f"({_reason(exc)})") from None
+    if frames == 0:
+        raise AudioFileError(f"audio file {show_text(name)}: contains no samples")
+    mono = np.concatenate(parts)
+    _check_finite(name, mono)
+    return mono, rate
+
+
+def _reason(exc: BaseException) -> str:
+    """libsndfile's own words for an error (not the repr of the buffer it read from), on one line."""
+    text = getattr(exc, "error_string", None) or str(exc)
+    return " ".join(str(text).split()) or type(exc).__name__
+
+
+def _too_long(name: str, seconds: float, max_duration_s: float | None, what: str = "") -> AudioFileError:
+    return AudioFileError(f"audio file {show_text(name)}: is {what}{seconds:.4g} s long; allowed: up to "
+                          f"{max_duration_s:g} s")
+
+
+def _check_rate(name: str, rate: float) -> None:
     if rate < MIN_AUDIO_RATE_HZ:
         raise AudioFileError(
             f"audio file {show_text(name)}: sample rate {rate} Hz is too low; allowed: at least "
             f"{MIN_AUDIO_RATE_HZ:g} Hz"
         )
-    mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0].copy()
+
+
+def _check_finite(name: str, mono: Any) -> None:
+    import numpy as np
+
     if not np.all(np.isfinite(mono)):
         raise AudioFileError(f"audio file {show_text(name)}: contains non-finite samples")
-    return mono, float(rate)
 
 
 def output_format(path: Path) -> str:

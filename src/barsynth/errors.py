@@ -27,5 +27,9 @@ class AudioFileError(BarsynthError, OSError):
     """An audio file is missing, unreadable or of an unsupported kind."""
 
 
+class AudioFormatError(AudioFileError):
+    """An audio file's bytes are not a sound libsndfile reads (not WAV, FLAC or OGG, or broken)."""
+
+
 class SamplesError(BarsynthError, ValueError):
     """Settings for which a model gives non-finite or exploding samples (never played or written)."""

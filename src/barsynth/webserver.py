@@ -87,10 +87,11 @@ def hosts_for(host: str) -> tuple[str, ...] | None:
     return (*LOCAL_HOSTS, f"[{host}]" if ":" in host else host)
 
 
-def guard(app: Any, allowed: Any, limit: int, who: str) -> None:
+def guard(app: Any, allowed: Any, limit: int, who: str, *, larger: dict[str, int] | None = None) -> None:
     """Add the middleware every barsynth server has: refuse a foreign Host (DNS rebinding)
     and a declared body over ``limit`` bytes, and add the security headers. ``allowed``:
-    the Host names to answer to (None: any); ``who``: 'this test', 'the studio'.
+    the Host names to answer to (None: any); ``who``: 'this test', 'the studio'; ``larger``:
+    the paths that take a larger body, and their limit (bytes): the studio's uploads.
 
     A plain ASGI middleware, not ``@app.middleware("http")``: starlette's BaseHTTPMiddleware
     wraps ``receive`` so that ``request.is_disconnected()`` never sees a client that has gone,
@@ -99,6 +100,7 @@ def guard(app: Any, allowed: Any, limit: int, who: str) -> None:
     from starlette.datastructures import Headers, MutableHeaders
 
     hosts = None if allowed is None else {h.lower() for h in allowed}
+    limits = dict(larger or {})
 
     def headers(inner: Any) -> Any:
         async def middleware(scope: Any, receive: Any, send: Any) -> None:
@@ -112,8 +114,9 @@ def guard(app: Any, allowed: Any, limit: int, who: str) -> None:
                 await refusal(scope, receive, send)
                 return
             length = asked.get("content-length", "0")
-            if not length.isdigit() or int(length) > limit:
-                refusal = JSONResponse({"error": f"request body too large; allowed: up to {limit} bytes"},
+            most = limits.get(scope.get("path", ""), limit)
+            if not length.isdigit() or int(length) > most:
+                refusal = JSONResponse({"error": f"request body too large; allowed: up to {most} bytes"},
                                        status_code=413)
                 await refusal(scope, receive, send)
                 return
@@ -135,23 +138,30 @@ def no_constants(name: str) -> None:
     raise ValueError(f"{name} is not a number JSON allows")
 
 
-async def read_json(request: Any, limit: int) -> Any:
-    """The request's JSON body (None when empty): application/json, at most ``limit`` bytes
-    (a chunked body too), no NaN or Infinity; otherwise :class:`Refused`."""
-    if request.headers.get("content-type", "").split(";")[0].strip() != "application/json":
-        raise Refused(415, "send the request body as application/json")
+async def read_body(request: Any, limit: int) -> bytes:
+    """The request's body, at most ``limit`` bytes (a chunked body too, which has no length to
+    check first); otherwise :class:`Refused` (413, or 400 for a client gone before the end)."""
     from starlette.requests import ClientDisconnect
 
     raw = bytearray()
     try:
-        async for chunk in request.stream():  # a chunked body has no length to check first
+        async for chunk in request.stream():
             raw += chunk
             if len(raw) > limit:
                 raise Refused(413, f"request body too large; allowed: up to {limit} bytes")
     except ClientDisconnect:  # nobody to answer; not an error of the server's
         raise Refused(400, "the client went away before its request body was complete") from None
+    return bytes(raw)
+
+
+async def read_json(request: Any, limit: int) -> Any:
+    """The request's JSON body (None when empty): application/json, at most ``limit`` bytes
+    (a chunked body too), no NaN or Infinity; otherwise :class:`Refused`."""
+    if request.headers.get("content-type", "").split(";")[0].strip() != "application/json":
+        raise Refused(415, "send the request body as application/json")
+    raw = await read_body(request, limit)
     try:
-        return json.loads(bytes(raw) or b"null", parse_constant=no_constants)
+        return json.loads(raw or b"null", parse_constant=no_constants)
     except (ValueError, RecursionError):
         raise Refused(400, "the request body is not valid JSON") from None
 

@@ -14,7 +14,8 @@ bounded too (``MAX_STREAMS``; one more is closed with code 1013 and a reason).
 HTTP API (JSON in and out; errors are ``{"error": "one line"}``):
 
 - ``GET /api/health``
-- ``GET /api/models``: every model's name, summary, parameter table and presets
+- ``GET /api/models``: every model's name, summary, parameter table and presets; the models a
+  recording can be fitted to and the upload's limits
 - ``GET /api/models/{model}/presets/{preset}``: a preset's resolved parameters
 - ``POST /api/render`` ``{"model", "parameters", "duration_s", "sample_rate"}``: a WAV file
   (16-bit, peak at -1 dBFS)
@@ -23,6 +24,10 @@ HTTP API (JSON in and out; errors are ``{"error": "one line"}``):
 - ``POST /api/picture`` ``{"model", "parameters", "duration_s", "sample_rate", "width"}``:
   waveform, spectrogram and modes of one strike (:mod:`barsynth.studio.pictures`)
 - ``POST /api/preset-file`` ``{"model", "parameters", "description"}``: a preset file (TOML)
+- ``POST /api/fit?model=banded|twang|fd&max_modes=N&nominal_hz=HZ&name=FILE&width=W``, the body a
+  WAV, FLAC or OGG file's bytes (at most ``MAX_UPLOAD_BYTES``, ``MAX_UPLOAD_S`` long): the
+  recording fitted, its settings, the comparison, both sounds and spectrograms
+  (:mod:`barsynth.studio.fitted`); at most ``MAX_UPLOADS`` uploads are read or fitted at once
 - ``WebSocket /api/stream``: the live stream (:mod:`barsynth.studio.live`, :mod:`barsynth.studio.stream`)
 
 ``docs/studio.md`` describes every field.
@@ -40,30 +45,33 @@ from fastapi import FastAPI, Request, WebSocket
 from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from ..errors import BarsynthError, ModelError
+from ..errors import AudioFormatError, BarsynthError, ModelError
 from ..checks import number_within, show_value
 from ..jsonout import json_ready
-from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_json,
-                         server_config, shown_address)
+from ..webserver import (LOCAL_HOSTS, QuietStop, Refused, guard, host_name, hosts_for, listen_socket, read_body,
+                         read_json, server_config, shown_address)
+from .fitted import MAX_UPLOAD_BYTES, MAX_UPLOAD_S
 from .live import DATA_BYTES, MAX_MESSAGE_BYTES, play
 from .pictures import MAX_COLUMNS
 from .presets_file import preset_toml
 from .stream import Stream
-from .work import MAX_RENDERS, Workers, modes_json, picture_json, render_wav
+from .work import MAX_RENDERS, Workers, fit_json, modes_json, picture_json, render_wav
 
-__all__ = ["MAX_BODY_BYTES", "MAX_RENDERS", "MAX_STREAMS", "create_app", "serve"]
+__all__ = ["MAX_BODY_BYTES", "MAX_RENDERS", "MAX_STREAMS", "MAX_UPLOADS", "MAX_UPLOAD_BYTES", "create_app", "serve"]
 
 MAX_BODY_BYTES = 16 * 1024 + DATA_BYTES  # settings with a recorded attack's samples fit
 MAX_DURATION_S = 20.0
 SAMPLE_RATES = (22050, 44100, 48000, 96000)
 MAX_STREAMS = 4
+MAX_UPLOADS = 4  # uploads read, waiting for a worker or fitted at once (each held in memory); more get 503
+FIT_OPTIONS = ("model", "max_modes", "nominal_hz", "name", "width")
 DEFAULT_PORT = 8050
 _NO_STORE = {"Cache-Control": "no-store"}
 _JS = "text/javascript; charset=utf-8"
 # The page's files (only these are served): app.js and the ES modules it imports, the worklet,
 # the stream's worker and the style sheet.
 _STATIC = {**{name: _JS for name in ("app.js", "page.js", "controls.js", "live.js", "plots.js", "files.js",
-                                    "worklet.js", "link.js")},
+                                    "fit.js", "worklet.js", "link.js")},
            "style.css": "text/css; charset=utf-8"}
 
 
@@ -124,11 +132,44 @@ def _width(value: Any) -> int:
     return int(value)
 
 
+def _fit_options(query: Any) -> dict:
+    """The options of ``/api/fit`` from its query: the model to fit, the most modes, the note's
+    nominal frequency, the file's name (for messages) and the spectrograms' width. Their ranges
+    are the fit's own (:func:`barsynth.fitting.fit_recording` checks them, in the worker)."""
+    from ..fitting import FIT_MODELS
+
+    unknown = sorted(set(query.keys()) - set(FIT_OPTIONS))
+    if unknown:
+        raise Refused(422, f"unknown option {show_value(unknown[0])}; allowed: {', '.join(FIT_OPTIONS)}")
+    model = query.get("model", "banded")
+    if model not in FIT_MODELS:
+        raise Refused(422, f"parameter model = {show_value(model)} cannot be fitted; allowed: one of "
+                           f"{', '.join(FIT_MODELS)}")
+    max_modes = query.get("max_modes", "12")
+    if not (max_modes.isascii() and max_modes.isdigit() and len(max_modes) <= 6):
+        raise Refused(422, f"parameter max_modes = {show_value(max_modes)} is not a whole number of modes")
+    nominal_hz = query.get("nominal_hz")
+    if nominal_hz is not None:
+        try:
+            nominal_hz = float(nominal_hz)
+        except ValueError:
+            raise Refused(422, f"parameter nominal_hz = {show_value(nominal_hz)} is not a number of Hz") from None
+    width = query.get("width")
+    if width is not None:
+        width = int(width) if width.isascii() and width.isdigit() and len(width) <= 6 else width
+    name = query.get("name", "upload")
+    if not 0 < len(name) <= 200 or any(0xD800 <= ord(c) <= 0xDFFF for c in name):
+        raise Refused(422, "parameter name (the file's name) must be text of 1 to 200 characters")
+    return {"model": model, "max_modes": int(max_modes), "nominal_hz": nominal_hz, "name": name,
+            "width": _width(width)}
+
+
 def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Workers | None = None) -> FastAPI:
     """The studio's FastAPI app; ``allowed_hosts`` as for the listening server (None: any);
     ``workers`` run the renders (by default a pool of ``MAX_RENDERS`` worker processes)."""
     workers = workers if workers is not None else Workers()
     streams: set[Stream] = set()
+    uploads = [0]  # uploads being read, waiting or fitted now
     hosts = None if allowed_hosts is None else {h.lower() for h in allowed_hosts}
     web = resources.files("barsynth.studio") / "web"
     app = FastAPI(title="barsynth studio", docs_url=None, redoc_url=None, openapi_url=None)
@@ -146,7 +187,7 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
     async def bad_value(_request: Request, exc: BarsynthError) -> JSONResponse:
         return JSONResponse({"error": str(exc)}, status_code=422, headers=_NO_STORE)
 
-    guard(app, allowed_hosts, MAX_BODY_BYTES, "the studio")
+    guard(app, allowed_hosts, MAX_BODY_BYTES, "the studio", larger={"/api/fit": MAX_UPLOAD_BYTES})
 
     @app.get("/")
     async def index() -> Response:
@@ -172,12 +213,15 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
         from ..models import get_model, model_names
         from ..presets import preset_names
 
+        from ..fitting import FIT_MODELS
+
         listed = []
         for name in model_names():
             model = get_model(name)
             listed.append({"name": name, "summary": model.summary, "parameters": model.table.to_json(),
                            "presets": list(preset_names(name))})
-        return JSONResponse({"models": listed})
+        return JSONResponse({"models": listed, "fit": {"models": list(FIT_MODELS), "max_upload_bytes": MAX_UPLOAD_BYTES,
+                                                       "max_upload_s": MAX_UPLOAD_S}})
 
     @app.get("/api/models/{name}/presets/{preset}")
     async def preset(name: str, preset: str) -> JSONResponse:
@@ -239,6 +283,26 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
         text = preset_toml(model.table.as_dict(resolved), description=description, model=model.name)
         return Response(text, media_type="application/toml; charset=utf-8",
                         headers={**_NO_STORE, "Content-Disposition": f'attachment; filename="{model.name}.toml"'})
+
+    @app.post("/api/fit")
+    async def fit(request: Request) -> Response:
+        options = _fit_options(request.query_params)
+        if uploads[0] >= MAX_UPLOADS:
+            raise Refused(503, f"the studio is fitting {MAX_UPLOADS} recordings at once; try again")
+        uploads[0] += 1
+        try:
+            data = await read_body(request, MAX_UPLOAD_BYTES)
+            if not data:
+                raise Refused(422, f"the upload is empty (0 bytes); allowed: a WAV, FLAC or OGG file of up to "
+                                   f"{MAX_UPLOAD_S:g} s and {MAX_UPLOAD_BYTES} bytes")
+            try:
+                found = await workers.run(fit_json, data, options["name"], options["model"], options["max_modes"],
+                                          options["nominal_hz"], options["width"], gone=request.is_disconnected)
+            except AudioFormatError as exc:  # not a sound file: the one line, as unsupported media
+                raise Refused(415, str(exc)) from None
+        finally:
+            uploads[0] -= 1
+        return Response(found, media_type="application/json", headers=_NO_STORE)
 
     def foreign(socket: WebSocket) -> bool:
         """A page of another origin (another site, or another port of this machine) or a rebound

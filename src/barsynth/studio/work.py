@@ -1,4 +1,4 @@
-"""The studio's heavy work (WAV renders, pictures, mode tables) in worker processes, bounded.
+"""The studio's heavy work (WAV renders, pictures, mode tables, fits of uploads) in worker processes, bounded.
 
 Renders and pictures hold the interpreter for much of their time (designs, analysis,
 JSON), so in the server's own process they would hold up the live streams, whose blocks
@@ -10,8 +10,9 @@ client disconnects is stopped (its worker process is killed and replaced), and s
 that runs longer than ``JOB_TIME_LIMIT_S`` (the client gets a 503 and one line).
 
 The workers take plain data (a model's name and a dict of values, already checked by
-the server) and give back bytes ready to send, so nothing but small messages crosses
-between the processes.
+the server; an upload's bytes, which only a worker reads) and give back bytes ready to send,
+so nothing but the data and the answer crosses between the processes. Reading an upload in a
+worker also keeps libsndfile's parsing of untrusted bytes out of the server's own process.
 """
 
 from __future__ import annotations
@@ -86,6 +87,15 @@ def modes_json(model_name: str, values: dict, sample_rate: float) -> bytes:
     model = get_model(model_name)
     rows = mode_rows(model, model.table.resolve(values), sample_rate)
     return json.dumps({"model": model.name, "sample_rate": sample_rate, "modes": rows}, allow_nan=False).encode()
+
+
+def fit_json(data: bytes, name: str, model: str, max_modes: int, nominal_hz: float | None, width: int) -> bytes:
+    """An uploaded recording fitted (:func:`barsynth.studio.fitted.fit_answer`) as the JSON
+    ``/api/fit`` answers."""
+    from .fitted import fit_answer
+
+    found = fit_answer(data, name, model, max_modes, nominal_hz, width)
+    return json.dumps(found, allow_nan=False, separators=(",", ":")).encode()
 
 
 class Workers:

@@ -6,12 +6,14 @@
 // directly, not through this thread (live.js); the pictures (POST /api/picture; plots.js), WAV
 // files, mode tables and preset files (files.js) come over HTTP. Every value is checked by the
 // server, whose one-line message is shown as it is. page.js holds what they share, among it
-// window.studio, the figures the tests read. This module wires them together and starts the page.
+// window.studio, the figures the tests read. A recording dropped on the page (or opened) is fitted
+// and played against its resynthesis by fit.js. This module wires them together and starts the page.
 
 import { onChange } from "./controls.js";
 import { chooseModel, choosePreset, download, savePreset, share } from "./files.js";
 import { play, queueSet, release, setVolume, stop, trigger, updateLive } from "./live.js";
-import { $, api, clearMessage, current, element, failed, showMessage, studio } from "./page.js";
+import { startFitting } from "./fit.js";
+import { $, api, clearMessage, current, element, failed, showMessage, studio, typing } from "./page.js";
 import { followSize, redrawSpectrogram, schedulePicture } from "./plots.js";
 
 // Keys: space or t strikes, r releases a bow stroke, s or Escape stops (not while typing in a box).
@@ -19,13 +21,11 @@ function onKey(event) {
   if (event.ctrlKey || event.metaKey || event.altKey || event.repeat) return;
   const target = event.target;
   const tag = target.tagName;
-  const typing = tag === "TEXTAREA" || tag === "SELECT" ||
-    (tag === "INPUT" && !["range", "checkbox", "button", "radio"].includes(target.type));
   if (event.key === "Escape") {
     stop();
     return;
   }
-  if (typing) return;
+  if (typing(event)) return;
   const key = event.key.toLowerCase();
   if (key === " " && (tag === "BUTTON" || target.type === "checkbox")) return;  // their own action
   if (key === " " || key === "t") {
@@ -71,6 +71,7 @@ async function init() {
   }
   const models = new Map(data.models.map((m) => [m.name, m]));
   current.models = models;
+  startFitting(data.fit);
   $("model").replaceChildren(...data.models.map((m) => element("option", { value: m.name }, m.name)));
   const query = new URLSearchParams(location.search);
   const wanted = query.get("model");

@@ -1,7 +1,8 @@
 // barsynth studio: settings in and out: models and presets loaded (GET /api/models/.../presets/...),
-// WAV files (POST /api/render) and preset files (POST /api/preset-file) saved, and a link to the
-// current settings (the model, the preset and what differs from it, in the address; not a data row's
-// samples: they come with the preset).
+// the settings of the last fit (fit.js) loaded as a preset is, WAV files (POST /api/render) and
+// preset files (POST /api/preset-file) saved, and a link to the current settings (the model, the
+// preset and what differs from it, in the address; not a data row's samples: they come with the
+// preset, and a fitted attack does not go into a link).
 
 import { buildControls, defaults, showAll, typed } from "./controls.js";
 import { restart } from "./live.js";
@@ -10,22 +11,36 @@ import { schedulePicture } from "./plots.js";
 
 // --- models and presets ------------------------------------------------------------------------
 
+// The preset list's entry for the settings of the last fit (current.fitted), while its model is chosen.
+export const FITTED = "(fitted)";
+
 export async function chooseModel(name, wanted = {}) {
   current.model = current.models.get(name);
   studio.model = name;
   $("model").value = name;
   $("summary").textContent = current.model.summary;
   const presetSelect = $("preset");
-  presetSelect.replaceChildren(element("option", { value: "" }, "(defaults)"),
+  const fitted = current.fitted && current.fitted.model === name
+    ? [element("option", { value: FITTED }, current.fitted.label)] : [];
+  presetSelect.replaceChildren(element("option", { value: "" }, "(defaults)"), ...fitted,
     ...current.model.presets.map((p) => element("option", { value: p }, p)));
   buildControls();
   await choosePreset(wanted.preset || "", wanted.overrides);  // an unknown one: the server's message
 }
 
+// A preset's values (or the defaults, or the last fit's: FITTED) in every control. A link leaves
+// out what equals the preset's values; for a fit, what equals the defaults (a link cannot name a fit).
 export async function choosePreset(name, overrides) {
   let loaded = defaults();
+  let base = null;
   let description = `${current.model.name} settings`;
-  if (name) {
+  if (name === FITTED && current.fitted && current.fitted.model === current.model.name) {
+    base = defaults();
+    loaded = { ...loaded, ...structuredClone(current.fitted.values) };
+    description = current.fitted.description;
+  } else if (name === FITTED) {
+    name = "";
+  } else if (name) {
     try {
       const data = await api("GET", `/api/models/${encodeURIComponent(current.model.name)}/presets/${encodeURIComponent(name)}`);
       loaded = data.parameters;
@@ -36,8 +51,8 @@ export async function choosePreset(name, overrides) {
     }
   }
   $("preset").value = name;
-  studio.preset = name;
-  current.base = { ...loaded };
+  studio.preset = name === FITTED ? "" : name;
+  current.base = base || { ...loaded };
   current.values = { ...loaded };
   $("description").value = description;
   showAll();

@@ -7,7 +7,8 @@
 // made: a set may wait for the one before it), sets, lastSet ({id, parameters} of the last set
 // sent), heardSetId, setsWaiting, playedReports (sent to the server, heartbeats too), streams
 // (sockets opened) and closes (closed by the server or the network), lastPicture and errors;
-// also inactive (the names of the controls greyed out because they have no effect now).
+// also inactive (the names of the controls greyed out because they have no effect now) and fit
+// (the last fit of a recording and its A/B player: see fit.js).
 
 export const $ = (id) => document.getElementById(id);
 
@@ -38,6 +39,8 @@ export const studio = {
   lastPicture: null,
   pictures: 0,
   errors: [],
+  fit: { state: "idle", fits: 0, result: null, playing: null, plays: { recording: 0, resynthesis: 0 },
+    heardPeak: { recording: 0, resynthesis: 0 } },
 };
 window.studio = studio;
 
@@ -47,6 +50,7 @@ export const current = {
   model: null,  // the chosen model's entry
   base: {},  // the chosen preset's values (or the table's defaults): what a link leaves out
   values: {},  // the current, accepted values
+  fitted: null,  // the last fit's settings: {model, values, label, description} (fit.js)
 };
 
 // --- messages and the server ---------------------------------------------------------------
@@ -93,6 +97,14 @@ export async function api(method, path, payload, asBlob = false) {
 
 export function failed(err) {
   showMessage(err instanceof ApiError ? err.message : `Something went wrong: ${err.message || err}`);
+}
+
+// Whether a key press is typing into a box (keys then are text, not commands).
+export function typing(event) {
+  const target = event.target;
+  const tag = target.tagName;
+  return tag === "TEXTAREA" || tag === "SELECT" ||
+    (tag === "INPUT" && !["range", "checkbox", "button", "radio", "file"].includes(target.type));
 }
 
 // --- values and elements ---------------------------------------------------------------------

@@ -1,6 +1,6 @@
 // barsynth studio: the pictures of the current settings (POST /api/picture, or the modes only
 // from POST /api/describe on a server without pictures): waveform, spectrogram, modes and the
-// mode table, drawn on canvases.
+// mode table, drawn on canvases. fit.js paints its two spectrograms with paintSpectrogram.
 
 import { $, RATE, api, current, element, failed, studio } from "./page.js";
 
@@ -52,7 +52,7 @@ async function updatePictures() {
   }
 }
 
-function hash(text) {  // FNV-1a, 32 bits, hex
+export function hash(text) {  // FNV-1a, 32 bits, hex
   let h = 0x811c9dc5;
   for (let i = 0; i < text.length; i++) {
     h ^= text.charCodeAt(i);
@@ -117,7 +117,7 @@ function prepare(canvas, right = MARGIN.right) {
   return { g, width, height, box };
 }
 
-function plotWidth(canvas) {
+export function plotWidth(canvas) {
   const width = Math.round(canvas.clientWidth || canvas.width);
   return Math.max(100, Math.min(1200, width - MARGIN.left - MARGIN.right));  // the server's MAX_COLUMNS
 }
@@ -266,12 +266,21 @@ function decode(base64) {
 }
 
 function drawSpectrogram(data) {
-  const canvas = $("spectrogram");
-  const bar = 54;  // the colour bar at the right
-  const { g, box } = prepare(canvas, MARGIN.right + bar);
   const spec = data.spectrogram;
+  const T = spec ? spec.times_s.length : 0;
+  const duration = data.duration_s || (T ? spec.times_s[T - 1] : PICTURE_S);
+  paintSpectrogram($("spectrogram"), spec, duration, { empty: "no spectrogram from this server (it has no /api/picture)" });
+}
+
+// A spectrogram as /api/picture (and /api/fit) sends it, on a canvas: time across, frequency up
+// (log or linear, as the page's "frequency axis" says), the levels in colour with a colour bar
+// (unless colourBar is false). marks: [{frequency_hz, dashed}] drawn as lines across (the
+// partials of a fit: dashed where the resynthesis has the partial, dotted where it lacks it).
+export function paintSpectrogram(canvas, spec, duration, { colourBar = true, marks = [], empty = "no spectrogram" } = {}) {
+  const bar = colourBar ? 54 : 0;  // the colour bar at the right
+  const { g, box } = prepare(canvas, MARGIN.right + bar);
   if (!spec) {
-    emptyPlot(g, box, "no spectrogram from this server (it has no /api/picture)");
+    emptyPlot(g, box, empty);
     return;
   }
   const levels = decode(spec.levels);
@@ -279,7 +288,6 @@ function drawSpectrogram(data) {
   const times = spec.times_s;
   const T = times.length;
   const F = spec.max_frequency_hz;
-  const duration = data.duration_s || (T ? times[T - 1] : PICTURE_S);
   const logAxis = $("spec-scale").value === "log";
   const logRows = spec.scale === "log";  // rows spaced evenly in log frequency from min_frequency_hz
   const fMin = logRows ? spec.min_frequency_hz : 0;
@@ -323,10 +331,25 @@ function drawSpectrogram(data) {
     }
   }
   g.putImageData(image, Math.round(box.x * dpr), Math.round(box.y * dpr));
+  g.save();
+  g.strokeStyle = "#3fe0ff";
+  g.lineWidth = 1;
+  for (const mark of marks) {
+    const f = mark.frequency_hz;
+    if (!(f >= fLow && f <= F)) continue;
+    const y = Math.round(toY(f)) + 0.5;
+    g.setLineDash(mark.dashed ? [6, 4] : [1, 3]);
+    g.beginPath();
+    g.moveTo(box.x, y);
+    g.lineTo(box.x + box.w, y);
+    g.stroke();
+  }
+  g.restore();
   frame(g, box);
   xTicks(g, box, timeTicks(duration, box.w), (t) => box.x + (t / duration) * box.w, "time (s)");
   const fTicks = logAxis ? logTicks(fLow, F) : linearTicks(0, F, 6).map((f) => [f, hzText(f)]);
   yTicks(g, box, fTicks, toY, "frequency (Hz)");
+  if (!colourBar) return;
 
   // colour bar: floor to ceiling in dB
   const cx = box.x + box.w + 12;
