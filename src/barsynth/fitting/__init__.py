@@ -193,7 +193,7 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
     if model == "banded":
         from .banded import fit_banded
 
-        fitted = fit_banded(analysis, x, rate, max_modes=max_modes, **options)
+        fitted = fit_banded(analysis, x, rate, max_modes=max_modes, nominal_hz=nominal_hz, **options)
         parameters = fitted.parameters
         details["left_out_hz"] = [p.frequency_hz for p in fitted.left_out]
     elif model == "twang":
