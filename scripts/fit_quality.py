@@ -49,6 +49,8 @@ FONTS = {"MuseScore": Path("/usr/share/sounds/sf3/MuseScore_General_Lite.sf3"),
          "TimGM6mb": Path("/usr/share/sounds/sf2/TimGM6mb.sf2")}
 KEYS = (48, 60, 72, 84)
 LONGEST_S = 3.0  # a sample is fitted over at most its first 3 s
+SHORTEST_S = 0.25  # a shorter sample with a loop (too short to analyse) ...
+UNROLLED_S = 1.0  # ... is played for this long, the loop repeated
 WITHIN_DB = 40.0
 CENTS, LEVEL_DB, T60_FRACTION = 3.0, 3.0, 0.15
 SINGLE_SLOPE_DB = 20.0
@@ -102,9 +104,19 @@ def notes(fonts: dict[str, Path] = FONTS, keys: tuple[int, ...] = KEYS, instrume
                     continue
                 seen.add(zone.sample.index)
                 x, rate = font.read(zone.sample)
-                x = np.asarray(x, dtype=float)[: int(LONGEST_S * rate)]
+                x = unrolled(np.asarray(x, dtype=float), font.loop(zone.sample), rate)[: int(LONGEST_S * rate)]
                 out.append(Note(font_name, instrument, zone.root_key, zone.nominal_hz, x, rate))
     return out
+
+
+def unrolled(x: np.ndarray, loop: tuple[int, int] | None, sample_rate: float) -> np.ndarray:
+    """A sample shorter than :data:`SHORTEST_S` with a loop, played as a SoundFont synthesiser
+    plays it (the loop repeated; without the preset's envelope) for :data:`UNROLLED_S`."""
+    if loop is None or x.size >= SHORTEST_S * sample_rate or not 0 <= loop[0] < loop[1] <= x.size:
+        return x
+    first, end = loop
+    repeats = int(math.ceil((UNROLLED_S * sample_rate - first) / (end - first)))
+    return np.concatenate([x[:first], np.tile(x[first:end], repeats)])[: int(UNROLLED_S * sample_rate)]
 
 
 def judged(fit: Any) -> list[Any]:

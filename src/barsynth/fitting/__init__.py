@@ -32,6 +32,7 @@ __all__ = ["FIT_MODELS", "Fit", "PartialComparison", "fit_recording"]
 FIT_MODELS = ("banded", "twang", "fd")
 MATCH_CENTS = 50.0  # a resynthesised partial this close to a recorded one is its counterpart
 LONGEST_RENDER_S = 10.0
+ALIGN_ON = 5  # levels are aligned on the median over this many strongest matched partials
 
 
 @dataclass(frozen=True)
@@ -123,24 +124,31 @@ def _targets(analysis: Any) -> list[Target]:
 
 
 def _compare(analysis: Any, resynthesis: np.ndarray, sample_rate: float) -> tuple[PartialComparison, ...]:
-    """Each partial of the recording against the resynthesis' nearest (within MATCH_CENTS): the
-    resynthesis' levels are taken relative to the strongest matched partial's, as the recording's."""
+    """Each sustained partial of the recording (f0, those above and those below it) against the
+    resynthesis' nearest (within MATCH_CENTS). The resynthesis is measured as the recording
+    was, and where it was: its partials sought at the recording's partials' frequencies, after
+    an attack as long as the recording's (a weak partial the fit plays is then not missed for
+    being hard to find). Its levels are aligned to the recording's by the median difference
+    over the :data:`ALIGN_ON` strongest matched partials (one partial's error is then not
+    everyone's)."""
     from ..analysis import analyze_note
 
-    again = analyze_note(resynthesis, sample_rate, nominal_hz=analysis.f0_hz)
+    recorded = [p.frequency_hz for p in (*analysis.below_f0, *analysis.partials)]
+    attack_s = analysis.attack.duration_s if analysis.attack is not None else None
+    again = analyze_note(resynthesis, sample_rate, nominal_hz=analysis.f0_hz, partials_hz=recorded,
+                         attack_s=attack_s, max_partials=max(24, len(recorded)))
     found = list(again.partials) + list(again.below_f0)
     rows = []
-    for p in analysis.partials:
+    for p in sorted((*analysis.below_f0, *analysis.partials), key=lambda q: q.frequency_hz):
         near = min(found, key=lambda q: abs(math.log(q.frequency_hz / p.frequency_hz)), default=None)
         if near is None or abs(1200.0 * math.log2(near.frequency_hz / p.frequency_hz)) > MATCH_CENTS:
             rows.append(PartialComparison(p.frequency_hz, p.level_db, p.t60_s))
         else:
             rows.append(PartialComparison(p.frequency_hz, p.level_db, p.t60_s, near.frequency_hz, near.level_db,
                                           near.t60_s))
-    matched = [r for r in rows if r.resynthesis_level_db is not None]
-    if matched:  # the two sounds' levels meet at the strongest partial the resynthesis has
-        anchor = max(matched, key=lambda r: r.level_db)
-        shift = anchor.level_db - anchor.resynthesis_level_db
+    matched = sorted((r for r in rows if r.resynthesis_level_db is not None), key=lambda r: -r.level_db)
+    if matched:  # the two sounds' levels meet where the strongest partials say
+        shift = float(np.median([r.level_db - r.resynthesis_level_db for r in matched[:ALIGN_ON]]))
         rows = [PartialComparison(r.frequency_hz, r.level_db, r.t60_s, r.resynthesis_hz,
                                   None if r.resynthesis_level_db is None else r.resynthesis_level_db + shift,
                                   r.resynthesis_t60_s) for r in rows]
