@@ -52,6 +52,7 @@ LONGEST_S = 3.0  # a sample is fitted over at most its first 3 s
 SHORTEST_S = 0.25  # a shorter sample with a loop (too short to analyse) ...
 UNROLLED_S = 1.0  # ... is played for this long, the loop repeated
 WITHIN_DB = 40.0
+HUM_BELOW = 0.25  # partials below this times f0 are hum (and below the banded model's ratios)
 CENTS, LEVEL_DB, T60_FRACTION = 3.0, 3.0, 0.15
 SINGLE_SLOPE_DB = 20.0
 SYNTH_CENTS, SYNTH_T60, SYNTH_DB = 0.5, 0.03, 1.0
@@ -120,12 +121,14 @@ def unrolled(x: np.ndarray, loop: tuple[int, int] | None, sample_rate: float) ->
 
 
 def judged(fit: Any) -> list[Any]:
-    """The comparison rows judged: sustained partials within WITHIN_DB of the strongest."""
+    """The comparison rows judged: sustained partials within WITHIN_DB of the strongest, from
+    :data:`HUM_BELOW` times f0 up (lower ones are hum or rumble: spec 7.1 reports them)."""
     rows = [r for r in fit.comparison if math.isfinite(r.level_db)]
     if not rows:
         return []
     top = max(r.level_db for r in rows)
-    return [r for r in rows if r.level_db >= top - WITHIN_DB]
+    lowest = HUM_BELOW * fit.analysis.f0_hz
+    return [r for r in rows if r.level_db >= top - WITHIN_DB and r.frequency_hz >= lowest]
 
 
 def single_slope(partial: Any) -> bool:
