@@ -133,15 +133,26 @@ def _compare(analysis: Any, resynthesis: np.ndarray, sample_rate: float) -> tupl
     everyone's)."""
     from ..analysis import analyze_note
 
-    recorded = [p.frequency_hz for p in (*analysis.below_f0, *analysis.partials)]
+    partials = (*analysis.below_f0, *analysis.partials)
+    level = {p.frequency_hz: p.level_db for p in partials}
+    # a resolved doublet is sought as the recording's was found: one band, at its stronger half
+    recorded = [p.frequency_hz for p in partials
+                if p.doublet_hz is None or level.get(p.doublet_hz, -math.inf) <= p.level_db]
     attack_s = analysis.attack.duration_s if analysis.attack is not None else None
-    again = analyze_note(resynthesis, sample_rate, nominal_hz=analysis.f0_hz, partials_hz=recorded,
-                         attack_s=attack_s, max_partials=max(24, len(recorded)))
-    found = list(again.partials) + list(again.below_f0)
+
+    def measured(where: list[float]) -> list[Any]:
+        again = analyze_note(resynthesis, sample_rate, nominal_hz=analysis.f0_hz, partials_hz=where,
+                             attack_s=attack_s, max_partials=max(24, len(partials)))
+        return [*again.below_f0, *again.partials]
+
+    ordered = sorted(partials, key=lambda q: q.frequency_hz)
+    found = _counterparts(ordered, measured(recorded))
+    if any(q is None for q in found) and len(recorded) < len(partials):  # a doublet's halves apart
+        again = _counterparts(ordered, measured([p.frequency_hz for p in partials]))
+        found = [q if q is not None else r for q, r in zip(found, again)]
     rows = []
-    for p in sorted((*analysis.below_f0, *analysis.partials), key=lambda q: q.frequency_hz):
-        near = min(found, key=lambda q: abs(math.log(q.frequency_hz / p.frequency_hz)), default=None)
-        if near is None or abs(1200.0 * math.log2(near.frequency_hz / p.frequency_hz)) > MATCH_CENTS:
+    for p, near in zip(ordered, found):
+        if near is None:
             rows.append(PartialComparison(p.frequency_hz, p.level_db, p.t60_s))
         else:
             rows.append(PartialComparison(p.frequency_hz, p.level_db, p.t60_s, near.frequency_hz, near.level_db,
@@ -153,6 +164,23 @@ def _compare(analysis: Any, resynthesis: np.ndarray, sample_rate: float) -> tupl
                                   None if r.resynthesis_level_db is None else r.resynthesis_level_db + shift,
                                   r.resynthesis_t60_s) for r in rows]
     return tuple(rows)
+
+
+def _counterparts(recorded: list[Any], found: list[Any]) -> list[Any]:
+    """Each recorded partial's counterpart among ``found``: the nearest within MATCH_CENTS,
+    when the recorded partial is also the one nearest to it (else None)."""
+    def cents(a: float, b: float) -> float:
+        return abs(1200.0 * math.log2(a / b))
+
+    out = []
+    for p in recorded:
+        near = min(found, key=lambda q: cents(q.frequency_hz, p.frequency_hz), default=None)
+        if near is None or cents(near.frequency_hz, p.frequency_hz) > MATCH_CENTS:
+            out.append(None)
+            continue
+        mine = min(recorded, key=lambda r: cents(r.frequency_hz, near.frequency_hz))
+        out.append(near if mine is p else None)
+    return out
 
 
 def _render(model: str, parameters: dict[str, Any], sample_rate: float, seconds: float,
