@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from barsynth.analysis import analyze_note
 from barsynth.fitting import fit_recording
 from barsynth.fitting.modal import mode_amplitudes
 from barsynth.models import get_model
@@ -49,8 +50,7 @@ FONTS = {"MuseScore": Path("/usr/share/sounds/sf3/MuseScore_General_Lite.sf3"),
          "TimGM6mb": Path("/usr/share/sounds/sf2/TimGM6mb.sf2")}
 KEYS = (48, 60, 72, 84)
 LONGEST_S = 3.0  # a sample is fitted over at most its first 3 s
-SHORTEST_S = 0.25  # a shorter sample with a loop (too short to analyse) ...
-UNROLLED_S = 1.0  # ... is played for this long, the loop repeated
+UNROLLED_S = 1.0  # a sample with a loop too short to analyse is played this long, the loop repeated
 WITHIN_DB = 40.0
 HUM_BELOW = 0.25  # partials below this times f0 are hum (and below the banded model's ratios)
 CENTS, LEVEL_DB, T60_FRACTION = 3.0, 3.0, 0.15
@@ -81,6 +81,7 @@ class Note:
     nominal_hz: float
     samples: np.ndarray
     sample_rate: float
+    looped: bool = False  # too short to analyse: played with its loop (:func:`unrolled`)
 
 
 def notes(fonts: dict[str, Path] = FONTS, keys: tuple[int, ...] = KEYS, instruments: Any = None) -> list[Note]:
@@ -105,15 +106,19 @@ def notes(fonts: dict[str, Path] = FONTS, keys: tuple[int, ...] = KEYS, instrume
                     continue
                 seen.add(zone.sample.index)
                 x, rate = font.read(zone.sample)
-                x = unrolled(np.asarray(x, dtype=float), font.loop(zone.sample), rate)[: int(LONGEST_S * rate)]
-                out.append(Note(font_name, instrument, zone.root_key, zone.nominal_hz, x, rate))
+                x = np.asarray(x, dtype=float)[: int(LONGEST_S * rate)]
+                loop = font.loop(zone.sample)
+                looped = loop is not None and analyze_note(x, rate, nominal_hz=zone.nominal_hz).f0_hz is None
+                if looped:
+                    x = unrolled(x, loop, rate)
+                out.append(Note(font_name, instrument, zone.root_key, zone.nominal_hz, x, rate, looped))
     return out
 
 
 def unrolled(x: np.ndarray, loop: tuple[int, int] | None, sample_rate: float) -> np.ndarray:
-    """A sample shorter than :data:`SHORTEST_S` with a loop, played as a SoundFont synthesiser
-    plays it (the loop repeated; without the preset's envelope) for :data:`UNROLLED_S`."""
-    if loop is None or x.size >= SHORTEST_S * sample_rate or not 0 <= loop[0] < loop[1] <= x.size:
+    """A sample with a loop played as a SoundFont synthesiser plays it (the loop repeated;
+    without the preset's envelope) for :data:`UNROLLED_S`."""
+    if loop is None or not 0 <= loop[0] < loop[1] <= x.size:
         return x
     first, end = loop
     repeats = int(math.ceil((UNROLLED_S * sample_rate - first) / (end - first)))
@@ -330,12 +335,13 @@ def measure_synthetic(preset: str, frequency_hz: float | None, seed: int = 0) ->
 
 # -- tables ----------------------------------------------------------------------------------
 def real_table(results: list[RealResult]) -> str:
-    lines = ["| font | instrument | key | f0 (Hz) | partials | freq <= 3 c | level <= 3 dB | T60 <= 15 % "
+    lines = ["| font | instrument | key | pitch (Hz) | partials | freq <= 3 c | level <= 3 dB | T60 <= 15 % "
              "| distance / sine (dB) | pass | worst misses |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         t60 = f"{r.t60_ok}/{r.t60_judged}" if r.t60_judged else "-"
-        lines.append(f"| {r.note.font} | {r.note.instrument} | {r.note.key} | {r.f0_hz:.2f} | {r.judged} | "
+        key = f"{r.note.key} (loop)" if r.note.looped else f"{r.note.key}"
+        lines.append(f"| {r.note.font} | {r.note.instrument} | {key} | {r.f0_hz:.2f} | {r.judged} | "
                      f"{r.freq_ok}/{r.judged} | {r.level_ok}/{r.judged} | {t60} | "
                      f"{r.distance_db:.2f} / {r.baseline_db:.2f} | {'yes' if r.passed else 'no'} | {r.worst} |")
     return "\n".join(lines)

@@ -90,7 +90,8 @@ def test_the_script_counts_a_miss():
 # -- real recordings ---------------------------------------------------------------------------
 REAL = [  # font, instrument, key: a marimba, a glockenspiel or vibraphone, a kalimba or tubular bell
     ("MuseScore", "marimba", 60), ("MuseScore", "glockenspiel", 84), ("MuseScore", "kalimba", 65),
-    ("MuseScore", "vibraphone", 63), ("TimGM6mb", "vibraphone", 75),
+    ("MuseScore", "vibraphone", 63), ("TimGM6mb", "marimba", 58), ("TimGM6mb", "glockenspiel", 94),
+    ("TimGM6mb", "kalimba", 72),
 ]
 
 
