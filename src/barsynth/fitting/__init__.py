@@ -32,6 +32,7 @@ __all__ = ["FIT_MODELS", "Fit", "PartialComparison", "fit_recording"]
 FIT_MODELS = ("banded", "twang", "fd")
 MATCH_CENTS = 50.0  # a resynthesised partial this close to a recorded one is its counterpart
 LONGEST_RENDER_S = 10.0
+SILENT_ATTACK_DB = -120.0  # the sample exciter's quietest attack: the modes alone
 ALIGN_ON = 5  # levels are aligned on the median over this many strongest matched partials
 
 
@@ -126,9 +127,10 @@ def _targets(analysis: Any) -> list[Target]:
 def _compare(analysis: Any, resynthesis: np.ndarray, sample_rate: float) -> tuple[PartialComparison, ...]:
     """Each sustained partial of the recording (f0, those above and those below it) against the
     resynthesis' nearest (within MATCH_CENTS). The resynthesis is measured as the recording
-    was, and where it was: its partials sought at the recording's partials' frequencies, after
-    an attack as long as the recording's (a weak partial the fit plays is then not missed for
-    being hard to find). Its levels are aligned to the recording's by the median difference
+    was, and where it was: its partials sought at the recording's partials' frequencies (a weak
+    partial the fit plays is then not missed for being hard to find), after an attack as long
+    as the recording's (a banded fit with the recording's attack as its strike is compared
+    without it: see :func:`fit_recording`). Its levels are aligned to the recording's by the median difference
     over the :data:`ALIGN_ON` strongest matched partials (one partial's error is then not
     everyone's)."""
     from ..analysis import analyze_note
@@ -254,7 +256,12 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
     seconds = min(LONGEST_RENDER_S, max(recording.size / rate, 0.05))
     highest = max(float(f) for f in (np.array(parameters.get("mode_ratios", (1.0,))) * analysis.f0_hz))
     resynthesis = _render(model, parameters, rate, seconds, highest)
-    comparison = _compare(analysis, resynthesis, rate)
+    modes = resynthesis
+    if model == "banded" and parameters.get("excitation") == "sample":
+        # the partials are compared with the modes alone: until the attack sample has faded the
+        # resynthesis is the recording itself, then partly, which says nothing of the modes
+        modes = _render(model, {**parameters, "attack_level_db": SILENT_ATTACK_DB}, rate, seconds, highest)
+    comparison = _compare(analysis, modes, rate)
     distance = spectral_distance(recording, resynthesis, rate)
     f0 = analysis.partials[0]
     baseline = spectral_distance(recording, sine_baseline(f0.frequency_hz, f0.t60_s or math.inf, rate,

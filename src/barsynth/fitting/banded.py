@@ -37,7 +37,7 @@ __all__ = ["BandedFit", "fit_banded"]
 
 WITHIN_DB = 60.0  # partials this far below the strongest are left out
 LEAD_S = 0.003  # the attack starts this long before the onset
-SHORTEST_ATTACK_S, LONGEST_ATTACK_S = 0.02, 0.1
+LONGEST_ATTACK_S = 0.1  # the sample exciter's longest attack (barsynth.exciters.sample.MAX_ATTACK_S)
 CALIBRATION_S = 0.5
 MIN_T60_S, MAX_T60_S = 0.005, 120.0
 NOMINAL_CENTS = 50.0  # an f0 further than this from the nominal pitch: tune to the nominal pitch
@@ -100,12 +100,12 @@ def _hardness(centroid_hz: float | None, sample_rate: float) -> float:
 
 def _attack_span(analysis: NoteAnalysis, recording: np.ndarray, sample_rate: float) -> tuple[int, int, int]:
     """(first sample, end, start) of the attack in ``recording``: from :data:`LEAD_S` before
-    the start over the attack the analysis measured (20 to 100 ms, at most a third of the
-    sound after the start)."""
+    the start to :data:`LONGEST_ATTACK_S` after it (what the sample exciter holds), at most a
+    third of the sound after the start. Longer than the attack the analysis judged (the
+    strike's broadband burst): what follows it, before the partials alone remain (a
+    resonator tube's ring, modes too weak or short to be partials), is part of the strike."""
     start = int(round(analysis.start_s * sample_rate))
-    length_s = analysis.attack.duration_s if analysis.attack is not None else None
-    length_s = min(max(length_s or SHORTEST_ATTACK_S, SHORTEST_ATTACK_S), LONGEST_ATTACK_S - LEAD_S,
-                   max(recording.size - start, 0) / sample_rate / 3.0)
+    length_s = min(LONGEST_ATTACK_S - LEAD_S, max(recording.size - start, 0) / sample_rate / 3.0)
     lo = max(0, start - int(round(LEAD_S * sample_rate)))
     hi = min(recording.size, start + int(round(length_s * sample_rate)))
     return lo, hi, start
