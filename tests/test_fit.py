@@ -117,7 +117,9 @@ def test_real_recordings_meet_the_frequency_and_distance_targets(font, instrumen
 
 # -- the command line: the preset plays, at any pitch -----------------------------------------
 def peaks_hz(samples: np.ndarray, rate: float, count: int) -> list[float]:
-    note = analyze_note(samples, rate)
+    """The ``count`` strongest partials' frequencies (Hz) of a sound, measured after its first
+    0.15 s (the fit's attack, the recording's own first 100 ms, has ended)."""
+    note = analyze_note(samples[int(0.15 * rate):], rate)
     strongest = sorted((*note.below_f0, *note.partials), key=lambda p: -p.level_db)[:count]
     return sorted(p.frequency_hz for p in strongest)
 
@@ -163,12 +165,11 @@ def test_the_fitted_preset_plays_at_its_pitch_and_at_another_with_its_ratios(fit
     assert result.exit_code == 0, result.output
     played, rate = soundfile.read(wav)
     ratios = np.array(report["parameters"]["mode_ratios"])
-    gains = np.array(report["parameters"]["mode_gains_db"])
     pitch = report["parameters"]["frequency_hz"] if frequency_hz is None else frequency_hz
-    strongest = np.sort(ratios[np.argsort(-gains)[:3]]) * pitch
-    heard = peaks_hz(played, rate, 3)
-    assert len(heard) == 3
-    for want, got in zip(strongest, heard):
-        assert abs(1200.0 * math.log2(got / want)) < 1.0, (strongest, heard)
+    heard = peaks_hz(played, rate, 4)
+    assert len(heard) == 4
+    for got in heard:  # each partial heard is a mode, at its ratio to the pitch asked for
+        assert np.min(np.abs(1200.0 * np.log2(got / (ratios * pitch)))) < 1.0, (heard, ratios * pitch)
+    assert abs(1200.0 * math.log2(min(heard) / pitch)) < 1.0  # the fundamental sounds
     if frequency_hz is None:
         assert abs(1200.0 * math.log2(pitch / note.nominal_hz)) < 5.0
