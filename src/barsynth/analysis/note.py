@@ -51,6 +51,8 @@ MIN_SPAN_S = 0.02  # and is fitted over at least this long
 MIN_COHERENCE = 0.5  # a damped exponential explains at least this share of its band
 MAX_RMS_DB = 6.0  # the decay fit misses the envelope by at most this (RMS, dB) ...
 MIN_R2 = 0.5  # ... and explains at least this share of its variance
+DOUBLET_COHERENCE = 0.99  # a doublet whose two exponentials explain this share of its band is
+# sustained whatever its dB envelope's fit says (deep beats make that fit meaningless)
 MAX_LEVEL_ABOVE_PEAK = 2.0  # no partial starts more than twice the sound's peak
 MAX_EXTRAPOLATION_DB = 40.0  # nor has fallen by more than this where its fit begins
 MIN_DURATION_S = 0.01  # shorter sounds (after the start) are not analysed
@@ -238,7 +240,8 @@ class _Analysis:
                 continue
             if c.amplitude > MAX_LEVEL_ABOVE_PEAK * self.peak:  # extrapolated from a fit of something else
                 continue
-            if c.rms_db > MAX_RMS_DB or (not c.sustains and c.r2 < MIN_R2):
+            explained = c.doublet and c.coherence >= DOUBLET_COHERENCE  # beats leave notches in dB
+            if not explained and (c.rms_db > MAX_RMS_DB or (not c.sustains and c.r2 < MIN_R2)):
                 continue
             if c.t_end - c.t_start < MIN_SPAN_S:
                 continue
