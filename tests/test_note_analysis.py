@@ -380,5 +380,6 @@ def test_real_notes_find_the_root_key(musescore, program, sample):
     assert analysis.attack.duration_s <= 0.15
     for p in everything(analysis):
         assert math.isfinite(p.frequency_hz) and p.level_db <= 6.0
-        assert p.decay.rms_db <= 6.0
+        # a doublet's beats notch its dB envelope: it is judged by its complex fit instead
+        assert p.decay.rms_db <= 6.0 or p.decay.method == "doublet"
     json_round_trip(analysis)

@@ -51,10 +51,13 @@ MIN_SPAN_S = 0.02  # and is fitted over at least this long
 MIN_COHERENCE = 0.5  # a damped exponential explains at least this share of its band
 MAX_RMS_DB = 6.0  # the decay fit misses the envelope by at most this (RMS, dB) ...
 MIN_R2 = 0.5  # ... and explains at least this share of its variance
+DOUBLET_COHERENCE = 0.99  # a doublet whose two exponentials explain this share of its band is
+# sustained whatever its dB envelope's fit says (deep beats make that fit meaningless)
 MAX_LEVEL_ABOVE_PEAK = 2.0  # no partial starts more than twice the sound's peak
 MAX_EXTRAPOLATION_DB = 40.0  # nor has fallen by more than this where its fit begins
 MIN_DURATION_S = 0.01  # shorter sounds (after the start) are not analysed
 WIDEN = 4.0  # a band too narrow for its partial's decay is tried this much wider
+SHADOW_DB, SHADOW_WIDTHS, SHADOW_HZ = 30.0, 3.0, 10.0  # a peak this much weaker within this many narrowest cutoffs (at most SHADOW_HZ)
 _CANDIDATE_SEPARATION_CENTS = 30.0
 _MIN_FREQUENCY_HZ = 5.0
 _LN1000 = math.log(1000.0)
@@ -67,6 +70,8 @@ def analyze_note(
     nominal_hz: float | None = None,
     max_partials: int = 24,
     min_level_db: float = -60.0,
+    partials_hz: Any = None,
+    attack_s: float | None = None,
 ) -> NoteAnalysis:
     """Analyse a recorded note: f0, sustained partials with their decays, attack, loop.
 
@@ -84,6 +89,12 @@ def analyze_note(
     min_level_db
         Partials more than this far below the strongest (initial level) are left out,
         dB (negative).
+    partials_hz
+        Where to look for partials (Hz), instead of the sound's spectral peaks: a
+        resynthesis measured where its recording's partials were (a fit's comparison).
+    attack_s
+        How long the attack lasts from the start (s), instead of judging it: the same
+        span as the recording's when a resynthesis is compared with it.
 
     Returns
     -------
@@ -113,7 +124,15 @@ def analyze_note(
     min_level_db = check_number(
         "min_level_db", min_level_db, "dB (relative to the strongest partial)", minimum=-300.0, maximum=0.0
     )
-    return _Analysis(x, fs, nominal_hz, max_partials, min_level_db).run()
+    if partials_hz is not None:
+        partials_hz = sorted(check_number("partials_hz", f, "Hz (below half the sample rate)", minimum=0.0,
+                                          maximum=0.5 * fs, minimum_exclusive=True, maximum_exclusive=True)
+                             for f in partials_hz)
+    if attack_s is not None:
+        attack_s = check_number("attack_s", attack_s, "s", minimum=0.0, maximum=x.size / fs)
+    analysis = _Analysis(x, fs, nominal_hz, max_partials, min_level_db)
+    analysis.partials_hz, analysis.attack_s = partials_hz, attack_s
+    return analysis.run()
 
 
 class _Analysis:
@@ -132,6 +151,8 @@ class _Analysis:
         self.onset_s = self.onset / fs
         self.peak = float(np.max(np.abs(x))) if x.size else 0.0
         self.band_maker: Bands | None = None
+        self.partials_hz: list[float] | None = None
+        self.attack_s: float | None = None
         self.envelopes: dict[tuple[float, float], BandEnvelope] = {}
 
     def empty(self, note: str, noise: NoiseFloor | None = None) -> NoteAnalysis:
@@ -146,16 +167,20 @@ class _Analysis:
     def bands(self) -> list[tuple[float, float, float]]:
         """(centre, cutoff, widest cutoff its neighbours allow) of each candidate's band, Hz."""
         x, fs = self.x, self.fs
-        cands = note_peaks(
+        cands = [(f, 0.0) for f in self.partials_hz] if self.partials_hz is not None else note_peaks(
             x, fs, self.start,
             min_level_db=max(-300.0, self.min_level_db - 20.0),
             min_frequency_hz=_MIN_FREQUENCY_HZ,
             max_count=2 * self.max_partials + 8,
             min_separation_cents=_CANDIDATE_SEPARATION_CENTS,
         )
-        freqs = sorted(f for f, _ in cands)
         span = self.duration - self.start_s
         lowest = max(4.0 / span, 1.0)
+        # a peak far weaker than a close neighbour is its sideband (a loop's or a tremolo's
+        # ripple, a window's leakage), not a partial: it would only narrow the neighbour's band
+        reach = min(SHADOW_WIDTHS * lowest, SHADOW_HZ)
+        freqs = sorted(f for f, h in cands
+                       if not any(abs(f - g) < reach and k - h >= SHADOW_DB for g, k in cands))
         # candidates closer than two of the narrowest cutoffs share a band (a doublet:
         # the band's two-exponential fit tells them apart)
         merged: list[float] = []
@@ -215,7 +240,8 @@ class _Analysis:
                 continue
             if c.amplitude > MAX_LEVEL_ABOVE_PEAK * self.peak:  # extrapolated from a fit of something else
                 continue
-            if c.rms_db > MAX_RMS_DB or (not c.sustains and c.r2 < MIN_R2):
+            explained = c.doublet and c.coherence >= DOUBLET_COHERENCE  # beats leave notches in dB
+            if not explained and (c.rms_db > MAX_RMS_DB or (not c.sustains and c.r2 < MIN_R2)):
                 continue
             if c.t_end - c.t_start < MIN_SPAN_S:
                 continue
@@ -268,7 +294,10 @@ class _Analysis:
         if not plan:
             return self.empty("no partials: no spectral peak stands out", noise)
         self.band_maker = Bands(x, fs, min(c for _, c, _ in plan))
-        end = attack_end(x, fs, self.start, [f for f, _, _ in plan])
+        if self.attack_s is not None:
+            end = self.start + int(round(self.attack_s * fs)) if self.attack_s > 0 else None
+        else:
+            end = attack_end(x, fs, self.start, [f for f, _, _ in plan])
         comps = self.fit(plan, noise, (end if end is not None else self.start) / fs)
         attack = describe_attack(x, x - self.resynthesis(comps), fs, self.start, end)
         if not comps:

@@ -32,6 +32,8 @@ __all__ = ["FIT_MODELS", "Fit", "PartialComparison", "fit_recording"]
 FIT_MODELS = ("banded", "twang", "fd")
 MATCH_CENTS = 50.0  # a resynthesised partial this close to a recorded one is its counterpart
 LONGEST_RENDER_S = 10.0
+SILENT_ATTACK_DB = -120.0  # the sample exciter's quietest attack: the modes alone
+ALIGN_ON = 5  # levels are aligned on the median over this many strongest matched partials
 
 
 @dataclass(frozen=True)
@@ -123,28 +125,64 @@ def _targets(analysis: Any) -> list[Target]:
 
 
 def _compare(analysis: Any, resynthesis: np.ndarray, sample_rate: float) -> tuple[PartialComparison, ...]:
-    """Each partial of the recording against the resynthesis' nearest (within MATCH_CENTS): the
-    resynthesis' levels are taken relative to the strongest matched partial's, as the recording's."""
+    """Each sustained partial of the recording (f0, those above and those below it) against the
+    resynthesis' nearest (within MATCH_CENTS). The resynthesis is measured as the recording
+    was, and where it was: its partials sought at the recording's partials' frequencies (a weak
+    partial the fit plays is then not missed for being hard to find), after an attack as long
+    as the recording's (a banded fit with the recording's attack as its strike is compared
+    without it: see :func:`fit_recording`). Its levels are aligned to the recording's by the median difference
+    over the :data:`ALIGN_ON` strongest matched partials (one partial's error is then not
+    everyone's)."""
     from ..analysis import analyze_note
 
-    again = analyze_note(resynthesis, sample_rate, nominal_hz=analysis.f0_hz)
-    found = list(again.partials) + list(again.below_f0)
+    partials = (*analysis.below_f0, *analysis.partials)
+    level = {p.frequency_hz: p.level_db for p in partials}
+    # a resolved doublet is sought as the recording's was found: one band, at its stronger half
+    recorded = [p.frequency_hz for p in partials
+                if p.doublet_hz is None or level.get(p.doublet_hz, -math.inf) <= p.level_db]
+    attack_s = analysis.attack.duration_s if analysis.attack is not None else None
+
+    def measured(where: list[float]) -> list[Any]:
+        again = analyze_note(resynthesis, sample_rate, nominal_hz=analysis.f0_hz, partials_hz=where,
+                             attack_s=attack_s, max_partials=max(24, len(partials)))
+        return [*again.below_f0, *again.partials]
+
+    ordered = sorted(partials, key=lambda q: q.frequency_hz)
+    found = _counterparts(ordered, measured(recorded))
+    if any(q is None for q in found) and len(recorded) < len(partials):  # a doublet's halves apart
+        again = _counterparts(ordered, measured([p.frequency_hz for p in partials]))
+        found = [q if q is not None else r for q, r in zip(found, again)]
     rows = []
-    for p in analysis.partials:
-        near = min(found, key=lambda q: abs(math.log(q.frequency_hz / p.frequency_hz)), default=None)
-        if near is None or abs(1200.0 * math.log2(near.frequency_hz / p.frequency_hz)) > MATCH_CENTS:
+    for p, near in zip(ordered, found):
+        if near is None:
             rows.append(PartialComparison(p.frequency_hz, p.level_db, p.t60_s))
         else:
             rows.append(PartialComparison(p.frequency_hz, p.level_db, p.t60_s, near.frequency_hz, near.level_db,
                                           near.t60_s))
-    matched = [r for r in rows if r.resynthesis_level_db is not None]
-    if matched:  # the two sounds' levels meet at the strongest partial the resynthesis has
-        anchor = max(matched, key=lambda r: r.level_db)
-        shift = anchor.level_db - anchor.resynthesis_level_db
+    matched = sorted((r for r in rows if r.resynthesis_level_db is not None), key=lambda r: -r.level_db)
+    if matched:  # the two sounds' levels meet where the strongest partials say
+        shift = float(np.median([r.level_db - r.resynthesis_level_db for r in matched[:ALIGN_ON]]))
         rows = [PartialComparison(r.frequency_hz, r.level_db, r.t60_s, r.resynthesis_hz,
                                   None if r.resynthesis_level_db is None else r.resynthesis_level_db + shift,
                                   r.resynthesis_t60_s) for r in rows]
     return tuple(rows)
+
+
+def _counterparts(recorded: list[Any], found: list[Any]) -> list[Any]:
+    """Each recorded partial's counterpart among ``found``: the nearest within MATCH_CENTS,
+    when the recorded partial is also the one nearest to it (else None)."""
+    def cents(a: float, b: float) -> float:
+        return abs(1200.0 * math.log2(a / b))
+
+    out = []
+    for p in recorded:
+        near = min(found, key=lambda q: cents(q.frequency_hz, p.frequency_hz), default=None)
+        if near is None or cents(near.frequency_hz, p.frequency_hz) > MATCH_CENTS:
+            out.append(None)
+            continue
+        mine = min(recorded, key=lambda r: cents(r.frequency_hz, near.frequency_hz))
+        out.append(near if mine is p else None)
+    return out
 
 
 def _render(model: str, parameters: dict[str, Any], sample_rate: float, seconds: float,
@@ -193,7 +231,7 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
     if model == "banded":
         from .banded import fit_banded
 
-        fitted = fit_banded(analysis, x, rate, max_modes=max_modes, **options)
+        fitted = fit_banded(analysis, x, rate, max_modes=max_modes, nominal_hz=nominal_hz, **options)
         parameters = fitted.parameters
         details["left_out_hz"] = [p.frequency_hz for p in fitted.left_out]
     elif model == "twang":
@@ -218,7 +256,12 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
     seconds = min(LONGEST_RENDER_S, max(recording.size / rate, 0.05))
     highest = max(float(f) for f in (np.array(parameters.get("mode_ratios", (1.0,))) * analysis.f0_hz))
     resynthesis = _render(model, parameters, rate, seconds, highest)
-    comparison = _compare(analysis, resynthesis, rate)
+    modes = resynthesis
+    if model == "banded" and parameters.get("excitation") == "sample":
+        # the partials are compared with the modes alone: until the attack sample has faded the
+        # resynthesis is the recording itself, then partly, which says nothing of the modes
+        modes = _render(model, {**parameters, "attack_level_db": SILENT_ATTACK_DB}, rate, seconds, highest)
+    comparison = _compare(analysis, modes, rate)
     distance = spectral_distance(recording, resynthesis, rate)
     f0 = analysis.partials[0]
     baseline = spectral_distance(recording, sine_baseline(f0.frequency_hz, f0.t60_s or math.inf, rate,

@@ -37,9 +37,11 @@ __all__ = ["BandedFit", "fit_banded"]
 
 WITHIN_DB = 60.0  # partials this far below the strongest are left out
 LEAD_S = 0.003  # the attack starts this long before the onset
-SHORTEST_ATTACK_S, LONGEST_ATTACK_S = 0.02, 0.1
+LONGEST_ATTACK_S = 0.1  # the sample exciter's longest attack (barsynth.exciters.sample.MAX_ATTACK_S)
 CALIBRATION_S = 0.5
 MIN_T60_S, MAX_T60_S = 0.005, 120.0
+NOMINAL_CENTS = 50.0  # an f0 further than this from the nominal pitch: tune to the nominal pitch
+LN1000 = math.log(1000.0)
 
 
 @dataclass(frozen=True)
@@ -59,9 +61,10 @@ def _chosen(analysis: NoteAnalysis, max_modes: int, sample_rate: float) -> tuple
     if not partials or analysis.f0_hz is None:
         raise ParameterError("the recording has no note to fit (no sustained partial with a fundamental); "
                              "allowed: a recording of one struck or plucked note")
+    f0 = partials[0]
+    partials = [*analysis.below_f0, *partials]  # what lies below f0 sounds too: modes with ratios < 1
     top = max(p.level_db for p in partials)
     audible = [p for p in partials if p.level_db >= top - WITHIN_DB]
-    f0 = partials[0]
     rest = sorted((p for p in audible if p is not f0), key=lambda p: -p.level_db)[:max_modes - 1]
     chosen = sorted([f0, *rest], key=lambda p: p.frequency_hz)
     return chosen, [p for p in partials if p not in chosen]
@@ -95,22 +98,37 @@ def _hardness(centroid_hz: float | None, sample_rate: float) -> float:
     return best[1]
 
 
-def _attack(analysis: NoteAnalysis, recording: np.ndarray, sample_rate: float) -> tuple[np.ndarray, float]:
-    """The attack residual (peak 1) and its peak (full scale) before normalising."""
+def _attack_span(analysis: NoteAnalysis, recording: np.ndarray, sample_rate: float) -> tuple[int, int, int]:
+    """(first sample, end, start) of the attack in ``recording``: from :data:`LEAD_S` before
+    the start to :data:`LONGEST_ATTACK_S` after it (what the sample exciter holds), at most a
+    third of the sound after the start. Longer than the attack the analysis judged (the
+    strike's broadband burst): what follows it, before the partials alone remain (a
+    resonator tube's ring, modes too weak or short to be partials), is part of the strike."""
     start = int(round(analysis.start_s * sample_rate))
-    components = [c for p in (*analysis.below_f0, *analysis.partials) for c in p.components]
-    synth = np.zeros(recording.size)
-    if components:
-        synth = damped_sum(recording.size, sample_rate, [c.frequency_hz for c in components],
-                           [c.t60_s for c in components],
-                           [10.0 ** (c.level_db / 20.0) * np.exp(1j * c.phase_rad) for c in components], start=start)
-    length_s = analysis.attack.duration_s if analysis.attack is not None else None
-    length_s = min(max(length_s or SHORTEST_ATTACK_S, SHORTEST_ATTACK_S), LONGEST_ATTACK_S - LEAD_S)
+    length_s = min(LONGEST_ATTACK_S - LEAD_S, max(recording.size - start, 0) / sample_rate / 3.0)
     lo = max(0, start - int(round(LEAD_S * sample_rate)))
     hi = min(recording.size, start + int(round(length_s * sample_rate)))
-    residual = recording[lo:hi] - synth[lo:hi]
-    if residual.size == 0:
+    return lo, hi, start
+
+
+def _attack(analysis: NoteAnalysis, recording: np.ndarray, sample_rate: float, modes: list[NotePartial],
+            played: np.ndarray) -> tuple[np.ndarray, float]:
+    """The attack residual (peak 1) and its peak (full scale) before normalising: the recording
+    less what the fit's modes will play there (``played``: each mode's complex amplitude at the
+    attack's first sample, with the phase the model gives it) and less the partials left out,
+    so that attack and modes together give the recording back until the fade."""
+    lo, hi, start = _attack_span(analysis, recording, sample_rate)
+    if hi <= lo:
         return np.zeros(1), 0.0
+    span = hi - lo
+    synth = damped_sum(span, sample_rate, [p.frequency_hz for p in modes], [_t60(p) for p in modes], played)
+    others = [c for p in (*analysis.below_f0, *analysis.partials) if not any(p is m for m in modes)
+              for c in p.components]
+    if others:
+        synth += damped_sum(span, sample_rate, [c.frequency_hz for c in others], [c.t60_s for c in others],
+                            [10.0 ** (c.level_db / 20.0) * np.exp(1j * c.phase_rad) for c in others],
+                            start=start - lo)
+    residual = recording[lo:hi] - synth
     ramp_in = min(residual.size, max(1, int(round(0.001 * sample_rate))))
     residual[:ramp_in] *= 0.5 - 0.5 * np.cos(np.pi * (np.arange(ramp_in) + 0.5) / ramp_in)
     fade = max(1, residual.size // 3)
@@ -130,7 +148,8 @@ def render_factor(highest_hz: float, sample_rate: float) -> int:
 
 def _calibration(parameters: dict[str, Any], sample_rate: float, frequencies: list[float],
                  t60s: list[float]) -> np.ndarray:
-    """Each mode's level (dB) in the model's raw output with every gain at 0 dB (no attack)."""
+    """Each mode's complex amplitude at the trigger in the model's raw output with every gain
+    at 0 dB (no attack): its level and the phase the strike gives it."""
     from ..models import get_model
 
     model = get_model("banded")
@@ -146,19 +165,23 @@ def _calibration(parameters: dict[str, Any], sample_rate: float, frequencies: li
     skip = int(round(0.01 * rate))  # past every loop's first trip round (its delay)
     amplitudes = mode_amplitudes(x, rate, [m.frequency_hz for m in modes], [m.t60_s for m in modes],
                                  fit_from=min(skip, x.size // 4))
-    return 20.0 * np.log10(np.maximum(np.abs(amplitudes), 1e-30))
+    return amplitudes
 
 
 def fit_banded(analysis: NoteAnalysis, recording: np.ndarray, sample_rate: float, *, max_modes: int = 12,
-               excitation: str = "sample") -> BandedFit:
+               excitation: str = "sample", nominal_hz: float | None = None) -> BandedFit:
     """The banded preset that plays ``recording`` (mono float64 at ``sample_rate`` Hz) back; see
-    the module docstring. ``excitation`` ``"sample"`` (its own attack) or ``"strike"`` (a mallet)."""
+    the module docstring. ``excitation`` ``"sample"`` (its own attack) or ``"strike"`` (a mallet);
+    ``nominal_hz`` (Hz, a soundfont's root key): the pitch to tune to when the analysis' f0 lies
+    more than :data:`NOMINAL_CENTS` from it (the ratios are then taken against it)."""
     from ..models import get_model
 
     table = get_model("banded").table
     row = {p.name: p for p in table}
     chosen, left_out = _chosen(analysis, min(max_modes, row["mode_ratios"].max_items), sample_rate)
-    f0 = analysis.f0_hz
+    f0 = float(analysis.f0_hz)
+    if nominal_hz is not None and abs(1200.0 * math.log2(f0 / nominal_hz)) > NOMINAL_CENTS:
+        f0 = float(nominal_hz)  # the partial taken for f0 is not the pitch the note is played at
     if not row["frequency_hz"].minimum <= f0 <= row["frequency_hz"].maximum:
         raise ParameterError(f"the note's fundamental, {f0:.6g} Hz, is out of the banded model's range; allowed: "
                              f"{row['frequency_hz'].minimum:g} to {row['frequency_hz'].maximum:g} Hz")
@@ -167,29 +190,37 @@ def fit_banded(analysis: NoteAnalysis, recording: np.ndarray, sample_rate: float
     left_out += [p for p, k in zip(chosen, keep) if not k]
     chosen = [p for p, k in zip(chosen, keep) if k]
     ratios = [r for r, k in zip(ratios, keep) if k]
+    if not chosen:
+        raise ParameterError(f"no partial of the recording lies within the banded model's ratios of {f0:.6g} Hz; "
+                             f"allowed: {row['mode_ratios'].minimum:g} to {row['mode_ratios'].maximum:g} times it")
     t60s = [_t60(p) for p in chosen]
-    attack, peak = _attack(analysis, recording, sample_rate)
     velocity = row["mallet_velocity_m_s"].default
     parameters: dict[str, Any] = {
-        "tuning": "ratios", "frequency_hz": float(f0), "mode_ratios": tuple(float(r) for r in ratios),
+        "tuning": "ratios", "frequency_hz": f0, "mode_ratios": tuple(float(r) for r in ratios),
         "mode_t60s_s": tuple(float(t) for t in t60s), "shape": "none", "excitation": excitation,
         "mallet_hardness": _hardness(analysis.attack.centroid_hz if analysis.attack else None, sample_rate),
     }
-    if excitation == "sample":
-        rate = int(round(sample_rate))
-        parameters.update(attack_samples=tuple(round(float(v), 6) + 0.0 for v in attack), attack_rate_hz=rate)
     calibration = _calibration({**parameters, "excitation": "sample"}, sample_rate,
                                [p.frequency_hz for p in chosen], t60s)
-    measured = np.array([p.level_db for p in chosen])
-    gains = measured - calibration
+    calibration_db = 20.0 * np.log10(np.maximum(np.abs(calibration), 1e-30))
+    # the modes start at the trigger, which plays the attack's first sample: LEAD_S before the
+    # recording's start, where each partial was that much louder
+    lo, _, start = _attack_span(analysis, recording, sample_rate)
+    lead_s = (start - lo) / sample_rate
+    measured = np.array([p.level_db + 20.0 * math.log10(math.e) * LN1000 * lead_s / t for p, t in zip(chosen, t60s)])
+    gains = measured - calibration_db
     level = float(min(max(np.max(gains), row["level_db"].minimum), row["level_db"].maximum))
-    lo, hi = row["mode_gains_db"].minimum, row["mode_gains_db"].maximum
-    parameters["mode_gains_db"] = tuple(float(min(max(g - level, lo), hi)) for g in gains)
+    lo_db, hi_db = row["mode_gains_db"].minimum, row["mode_gains_db"].maximum
+    parameters["mode_gains_db"] = tuple(float(min(max(g - level, lo_db), hi_db)) for g in gains)
     parameters["level_db"] = level
     if excitation == "sample":
+        played = calibration * 10.0 ** ((level + np.array(parameters["mode_gains_db"])) / 20.0)
+        attack, peak = _attack(analysis, recording, sample_rate, chosen, played)
+        parameters.update(attack_samples=tuple(round(float(v), 6) + 0.0 for v in attack),
+                          attack_rate_hz=int(round(sample_rate)))
         # the attack against the modes as in the recording: in the model's raw output the modes
         # are the recording's scaled by 10^(-level/20); the attack scales with velocity / (1 m/s)
         attack_db = (20.0 * math.log10(peak) - level - 20.0 * math.log10(velocity)) if peak > 0.0 else -120.0
         parameters["attack_level_db"] = float(min(max(attack_db, row["attack_level_db"].minimum),
                                                   row["attack_level_db"].maximum))
-    return BandedFit(parameters, tuple(chosen), tuple(left_out), tuple(float(c) for c in calibration))
+    return BandedFit(parameters, tuple(chosen), tuple(left_out), tuple(float(c) for c in calibration_db))
