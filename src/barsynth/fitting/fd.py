@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..physics import materials as all_materials
-from .targets import Target, cents, strongest
+from .targets import Target, article, cents, strongest
 
 __all__ = ["FdFit", "fit_fd"]
 
@@ -208,7 +208,7 @@ def fit_fd(targets: list[Target], *, material: str | None = None, thickness_m: f
         p = row[label]
         if not p.minimum <= value <= p.maximum:
             raise ParameterError(
-                f"a {name} bar {h * 1000:.3g} mm thick would need {label} = {value:.4g} {p.unit} to ring as recorded, "
+                f"{article(name)} {name} bar {h * 1000:.3g} mm thick would need {label} = {value:.4g} {p.unit} to ring as recorded, "
                 f"out of range; allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material or thickness)")
     modes_hz = scale * ratios
     matches, unmatched = _match(kept, modes_hz)

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..physics import bending_wave_constant, lambdas, material as find_material
-from .targets import Target, cents, strongest
+from .targets import Target, article, cents, strongest
 
 __all__ = ["TwangFit", "fit_twang"]
 
@@ -225,7 +225,7 @@ def _physical(base: float, material: str, thickness_m: float | None, length_m: f
         p = row[name]
         if not p.minimum <= value <= p.maximum:
             raise ParameterError(
-                f"a {material} ruler would need {name} = {value:.4g} {p.unit} to ring as recorded, out of range; "
+                f"{article(material)} {material} ruler would need {name} = {value:.4g} {p.unit} to ring as recorded, out of range; "
                 f"allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material, thickness or length)")
     return {"material": material, **result}
 
