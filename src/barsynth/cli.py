@@ -905,12 +905,12 @@ def _note_lines(name: str, note: Any) -> list[str]:
 
 FIT_OPTIONS = {"banded": {"excitation": ("sample", "strike")},
                "twang": {"material": None, "thickness_m": float, "length_m": float},
-               "fd": {"material": None, "thickness_m": float, "width_m": float, "bc": None}}
+               "fd": {"material": None, "thickness_m": float, "width_m": float, "bc": None, "points": int}}
 """What ``fit --set`` takes per model: a choice, a number, or (None) a word the fit checks."""
 
 
 def _fit_options(model: str, assignments: tuple[str, ...]) -> dict[str, Any]:
-    from .checks import check_number, show_value
+    from .checks import check_number, check_whole, show_value
 
     known = FIT_OPTIONS[model]
     options: dict[str, Any] = {}
@@ -929,6 +929,11 @@ def _fit_options(model: str, assignments: tuple[str, ...]) -> dict[str, Any]:
             options[name] = value
         elif kind is float:
             options[name] = check_number(name, value, "m", minimum=0.0, minimum_exclusive=True, parse_text=True)
+        elif kind is int:
+            from .models.fd.table import FD_TABLE
+
+            grid = {p.name: p for p in FD_TABLE}[name]
+            options[name] = check_whole(name, value.strip(), "nodes", int(grid.minimum), int(grid.maximum))
         else:
             options[name] = value.strip()
     if "material" in options:
@@ -954,7 +959,7 @@ def _fit_options(model: str, assignments: tuple[str, ...]) -> dict[str, Any]:
               help="The pitch the note is meant to have (e.g. a soundfont's root key), to settle f0.")
 @click.option("--set", "-s", "assignments", multiple=True, metavar="NAME=VALUE",
               help="What the fit is given: banded excitation=sample|strike; twang material=, thickness_m= or "
-                   "length_m=; fd material=, thickness_m=, width_m=, bc= (repeatable).")
+                   "length_m=; fd material=, thickness_m=, width_m=, bc=, points= (repeatable).")
 @click.option("-o", "--output", required=True, type=click.Path(path_type=Path), metavar="PRESET.toml",
               help="The preset file to write.")
 @click.option("--json", "as_json", is_flag=True,
