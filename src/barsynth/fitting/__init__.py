@@ -199,7 +199,8 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
     elif model == "twang":
         from .twang import fit_twang
 
-        fitted = fit_twang(_targets(analysis), sample_rate=rate, **options)
+        onset = int(round(analysis.onset_s * rate))
+        fitted = fit_twang(_targets(analysis), sample_rate=rate, recording=x[onset:], **options)
         parameters = fitted.parameters
         details["modes"] = [{"frequency_hz": m.target.frequency_hz, "group": m.group, "number": m.number,
                              "model_hz": m.model_hz, "cents": m.cents} for m in fitted.matches]

@@ -19,6 +19,9 @@ and thickness, the length (or for a given length, the thickness).
 3. ``Q``: the level-weighted median of each matched partial's ``pi f T60 / ln 1000``.
 4. Levels: the beta shape ``l`` by a bounded scalar search (dB error against the model's gains,
    with the common offset solved exactly), then each group's mix gain from its mean residual.
+5. Given the recording itself, steps 3 and 4 only start the fit of Q, the shape, the mixes and
+   the level to its band energies (:mod:`.twang_levels`), which tells a free-bar band from the
+   cantilever mode it lies on.
 """
 
 from __future__ import annotations
@@ -230,13 +233,25 @@ def _physical(base: float, material: str, thickness_m: float | None, length_m: f
     return {"material": material, **result}
 
 
+def length_for_base(base: float, fixed: dict[str, Any]) -> float:
+    """The clamped length (m) at which the ruler ``fixed`` (material or E and rho, thickness)
+    has its full-length cantilever's ``base`` (Hz)."""
+    from ..models.twang import TWANG_TABLE
+
+    p = TWANG_TABLE.resolve({k: v for k, v in fixed.items() if k != "length_m"})
+    return math.sqrt(bending_wave_constant(p.youngs_modulus_pa, p.density_kg_m3, p.thickness_m) / (2.0 * math.pi * base))
+
+
 def fit_twang(targets: list[Target], *, sample_rate: float, material: str = "acrylic",
-              thickness_m: float | None = None, length_m: float | None = None) -> TwangFit:
+              thickness_m: float | None = None, length_m: float | None = None,
+              recording: np.ndarray | None = None) -> TwangFit:
     """The twang whose modes best match ``targets`` (see the module docstring).
 
     ``material`` (a name of ``barsynth materials``) and ``thickness_m`` (default: the model's) or
-    ``length_m`` fix what frequencies cannot tell apart. Raises :class:`ParameterError` (one line)
-    when there is nothing to fit or the ruler it needs is out of the model's ranges."""
+    ``length_m`` fix what frequencies cannot tell apart. With ``recording`` (mono, from the
+    onset, at ``sample_rate``) Q, the gain shape, the mixes and the level are then fitted to its
+    band energies (:mod:`.twang_levels`). Raises :class:`ParameterError` (one line) when there
+    is nothing to fit or the ruler it needs is out of the model's ranges."""
     kept = strongest(targets, within_db=40.0, at_most=18)
     if not kept:
         raise ParameterError("the recording has no sustained partial to fit a twang to; allowed: a recording "
@@ -247,4 +262,10 @@ def fit_twang(targets: list[Target], *, sample_rate: float, material: str = "acr
     parameters["short_length_ratio"] = ratio
     parameters["q"] = float(min(max(_q(matches), 50.0), 800.0))
     parameters.update(_levels(matches, base, ratio, sample_rate))
+    if recording is not None and matches:
+        from .twang_levels import fit_levels
+
+        fixed = {"material": material, "thickness_m": parameters["thickness_m"]}
+        parameters.update(fit_levels(np.asarray(recording, dtype=float), sample_rate, base, ratio, parameters["q"],
+                                     parameters.get("shape", 1.5), fixed))
     return TwangFit(parameters, base, tuple(matches), tuple(unmatched))
