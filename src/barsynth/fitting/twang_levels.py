@@ -37,7 +37,8 @@ LONGEST_S = 1.0
 FLOOR_PERCENTILE = 20.0
 REFERENCE_LEVEL_DB = -3.0  # the templates' level (the model's default)
 RANGE_DB = 80.0  # bands this far below the strongest are left out (the model culls quieter modes)
-ITERATIONS = 4
+ITERATIONS = 3
+Q_STARTS = (0.6, 1.0, 1.6)
 MIX_TOPS = (1.0, 1.0, 4.0)  # full, short, free: the table's maxima
 MIX_NAMES = ("full_cantilever_gain", "short_cantilever_gain", "free_bar_gain")
 
@@ -51,6 +52,7 @@ def _gains(base: float, ratio: float, q: float, shape: float, sample_rate: float
     from ..models.twang.table import ROWS, control_vector
     from ..physics import bending_wave_constant
 
+    q, shape = min(max(q, 50.0), 800.0), min(max(shape, 0.5), 10.0)
     p = TWANG_TABLE.resolve({**fixed, "q": q, "shape": shape, "short_length_ratio": ratio, "full_cantilever_gain": 1.0,
                              "short_cantilever_gain": 1.0, "free_bar_gain": 1.0})
     values = control_vector(p)
@@ -161,56 +163,53 @@ def fit_levels(recording: np.ndarray, sample_rate: float, base: float, ratio: fl
     if signal.sum() < 3:
         return {}
     half_s = bands.half / sample_rate
-    result = None
-    for _ in range(ITERATIONS):
+
+    def solve(q: float, shape: float) -> tuple[float, float, float, np.ndarray]:
+        """(cost, Q, shape, group powers) from templates rendered at ``q`` and ``shape``."""
+        from scipy.optimize import nnls
+
+        q, shape = min(max(q, 50.0), 800.0), min(max(shape, 0.5), 10.0)
         f_ref, g_ref, a_ref = _gains(base, ratio, q, shape, sample_rate, fixed)
         templates = _templates(bands, base, ratio, q, shape, sample_rate, fixed, f_ref, g_ref)
         held = g_ref > 0.0
         e_ref = np.stack([_half_energy(a_ref, half_s, h) for h in (0, 1)], axis=1)  # (18, 2)
-
-        def model(x: np.ndarray) -> np.ndarray:
-            q_new, l_new = q * math.exp(x[0]), x[1]
-            _, g, a = _gains(base, ratio, q_new, l_new, sample_rate, fixed)
-            e = np.stack([_half_energy(a, half_s, h) for h in (0, 1)], axis=1)
-            scale = np.where(held, (g / np.where(held, g_ref, 1.0)) ** 2, 0.0)[:, None] * e / np.maximum(e_ref, 1e-300)
-            power = np.exp(x[2:5])
-            per_mode = scale[:, :, None] * templates  # (18, 2, bands)
-            total = sum(power[g_] * per_mode[6 * g_:6 * g_ + 6].sum(axis=0) for g_ in range(3))
-            return total + math.exp(x[5]) * floor
+        measured_db = 10.0 * np.log10(np.maximum(measured, 1e-300))[:, signal].ravel()
 
         def residual(x: np.ndarray) -> np.ndarray:
-            return (10.0 * np.log10(np.maximum(model(x), 1e-300)) - 10.0 * np.log10(np.maximum(measured, 1e-300)))[:, signal].ravel()
+            _, g, a = _gains(base, ratio, q * math.exp(x[0]), x[1], sample_rate, fixed)
+            e = np.stack([_half_energy(a, half_s, h) for h in (0, 1)], axis=1)
+            scale = np.where(held, (g / np.where(held, g_ref, 1.0)) ** 2, 0.0)[:, None] * e / np.maximum(e_ref, 1e-300)
+            per_mode = scale[:, :, None] * templates  # (18, 2, bands)
+            total = sum(math.exp(x[2 + k]) * per_mode[6 * k:6 * k + 6].sum(axis=0) for k in range(3))
+            total = total + math.exp(x[5]) * floor
+            return 10.0 * np.log10(np.maximum(total, 1e-300))[:, signal].ravel() - measured_db
 
         # each group's power to start from: non-negative least squares on the band energies,
         # each band's error relative to its energy (as the dB the fit then minimises)
-        from scipy.optimize import nnls
-
-        columns = np.stack([templates[6 * g_:6 * g_ + 6].sum(axis=0)[:, signal].ravel() for g_ in range(3)], axis=1)
+        columns = np.stack([templates[6 * k:6 * k + 6].sum(axis=0)[:, signal].ravel() for k in range(3)], axis=1)
         target = np.maximum(measured - floor, 0.0)[:, signal].ravel()
         weight = 1.0 / np.maximum(measured[:, signal].ravel(), 1e-300)
         powers, _ = nnls(columns * weight[:, None], target * weight)
         top = max(float(powers.max()), 1e-300)
-        starts = [float(np.log(max(v, 1e-6 * top))) for v in powers]
-        x0 = np.array([0.0, shape, *starts, 0.0])
-        lower = [math.log(50.0 / q), 0.5, -80.0, -80.0, -80.0, -30.0]
-        upper = [math.log(800.0 / q), 10.0, 80.0, 80.0, 80.0, 3.0]
-        x0 = np.clip(x0, np.array(lower) + 1e-6, np.array(upper) - 1e-6)
-        import os
-        if os.environ.get("DBG"):
-            print("x0", x0, "res x0", np.abs(residual(x0)).max(), "powers", powers, "colsum", columns.sum(axis=0), target.sum(), (columns[:,0]*10**1.7-target).std(), np.abs(residual(np.r_[0.0, shape, math.log(10**1.7), -80, -80, -30])).max())
+        lower = np.array([math.log(50.0 / q) - 1e-3, 0.5, -80.0, -80.0, -80.0, -30.0])
+        upper = np.array([math.log(800.0 / q) + 1e-3, 10.0, 80.0, 80.0, 80.0, 3.0])
+        x0 = np.array([0.0, shape, *(math.log(max(v, 1e-6 * top)) for v in powers), 0.0])
+        x0 = np.clip(x0, lower + 1e-6, upper - 1e-6)
         solved = least_squares(residual, x0, bounds=(lower, upper), x_scale=[0.05, 0.1, 0.5, 0.5, 0.5, 1.0],
                                max_nfev=200)
-        q_new, shape_new = q * math.exp(solved.x[0]), float(solved.x[1])
-        if os.environ.get("DBG"): print("solved", solved.x, solved.cost, solved.status, solved.nfev)
-        result = (q_new, shape_new, np.exp(solved.x[2:5]))
-        settled = abs(math.log(q_new / q)) < 0.02 and abs(shape_new - shape) < 0.05
-        q, shape = q_new, shape_new
+        powers = np.exp(solved.x[2:5]) * np.array([(g_ref[6 * k:6 * k + 6] > 0.0).any() for k in range(3)])
+        return float(solved.cost), q * math.exp(float(solved.x[0])), float(solved.x[1]), powers
+
+    # Q from the analysis' T60s can be far off where a noise band sits on a mode: three starts
+    result = min((solve(q * factor, shape) for factor in Q_STARTS), key=lambda r: r[0])
+    for _ in range(ITERATIONS - 1):  # templates again at the result, until it settles
+        again = solve(result[1], result[2])
+        settled = abs(math.log(again[1] / result[1])) < 0.02 and abs(again[2] - result[2]) < 0.05
+        result = again
         if settled:
             break
-    q, shape, power = result
+    _, q, shape, power = result
     amplitude = np.sqrt(power)  # each group's mix x (the level's amplitude over the template's)
-    audible_groups = [g_ for g_ in range(3) if (g_ref[6 * g_:6 * g_ + 6] > 0.0).any()]
-    amplitude = np.where([g_ in audible_groups for g_ in range(3)], amplitude, 0.0)
     amplitude = np.where(amplitude < 1e-3 * amplitude.max(), 0.0, amplitude)  # a group 60 dB down is not there
     scale = max(amplitude[0], amplitude[1] / MIX_TOPS[1], amplitude[2] / MIX_TOPS[2], 1e-12)
     mixes = {name: float(min(a / scale, top)) for name, a, top in zip(MIX_NAMES, amplitude, MIX_TOPS)}
