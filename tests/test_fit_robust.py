@@ -46,8 +46,8 @@ def speech_like(rate: float = 16000.0, seconds: float = 0.6) -> np.ndarray:
         for start in range(0, n, block):
             f = formant * (1.0 + 0.3 * np.sin(2 * np.pi * (1.5 + 0.5 * i) * t[start]))
             r = math.exp(-math.pi * bandwidth / rate)
-            out[start:start + block], state = lfilter([1.0 - r], [1.0, -2.0 * r * math.cos(2 * math.pi * f / rate), r * r],
-                                                      x[start:start + block], zi=state)
+            poles = [1.0, -2.0 * r * math.cos(2 * math.pi * f / rate), r * r]
+            out[start:start + block], state = lfilter([1.0 - r], poles, x[start:start + block], zi=state)
         x = out
     return 0.5 * x / np.max(np.abs(x)) * (np.sin(2 * np.pi * 3.0 * t) > -0.3)
 

@@ -230,8 +230,8 @@ def fit_fd(targets: list[Target], *, sample_rate: float = 48000.0, material: str
         p = row[label]
         if not p.minimum <= value <= p.maximum:
             raise ParameterError(
-                f"{article(name)} {name} bar {h * 1000:.3g} mm thick would need {label} = {value:.4g} {p.unit} to ring as recorded, "
-                f"out of range; allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material or thickness)")
+                f"{article(name)} {name} bar {h * 1000:.3g} mm thick would need {label} = {value:.4g} {p.unit} to "
+                f"ring as recorded, out of range; allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material or thickness)")
     parameters: dict[str, Any] = {"material": name, "length_m": length, "thickness_m": h, "width_m": width, "bc": bc,
                                   "points": nodes}
     if depth > 0.0:

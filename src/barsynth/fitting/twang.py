@@ -36,7 +36,7 @@ from ..errors import ParameterError
 from ..physics import bending_wave_constant, lambdas, material as find_material
 from .targets import Target, article, cents, strongest
 
-__all__ = ["TwangFit", "fit_twang"]
+__all__ = ["TwangFit", "fit_twang", "length_for_base"]
 
 RATIO_GRID = np.linspace(0.3, 0.95, 131)
 CAP_CENTS = 60.0  # a partial further than this from every mode counts as this far
@@ -106,8 +106,10 @@ def _match(targets: list[Target], base: float, ratio: float, nyquist: float) -> 
     return matches, unmatched
 
 
-def _frequencies(targets: list[Target], sample_rate: float) -> tuple[float, float]:
-    """``(base, ratio)`` that best place the measured partials on the twang's modes."""
+def _frequencies(targets: list[Target], sample_rate: float,
+                 bases_hz: tuple[float, float] = (0.0, math.inf)) -> tuple[float, float]:
+    """``(base, ratio)`` that best place the measured partials on the twang's modes; a ``base``
+    outside ``bases_hz`` (a ruler out of the model's ranges) is taken only if nothing else fits."""
     from scipy.optimize import least_squares
 
     nyquist = 0.5 * sample_rate
@@ -122,6 +124,7 @@ def _frequencies(targets: list[Target], sample_rate: float) -> tuple[float, floa
         bases = bases[bases > 0.0]
         scores = _cost(freqs, weights, bases[:, None] * mult[None, :], nyquist)
         scores = scores + RATIO_PULL * abs(ratio - PAPER_RATIO) * 10.0
+        scores = scores + np.where((bases >= bases_hz[0]) & (bases <= bases_hz[1]), 0.0, 2.0 * CAP_CENTS ** 2)
         i = int(np.argmin(scores))
         if scores[i] < best[0]:
             best = (float(scores[i]), float(bases[i]), float(ratio))
@@ -209,6 +212,22 @@ def _design_all(p: Any, sample_rate: float, base: float) -> np.ndarray:
     return modes.gain.copy()
 
 
+def _bases(material: str, thickness_m: float | None, length_m: float | None) -> tuple[float, float]:
+    """The lowest and highest ``base`` (Hz) a ruler of ``material`` can have within the model's
+    ranges, with the thickness (or length) given and the other free."""
+    from ..models.twang import TWANG_TABLE
+
+    row = {p.name: p for p in TWANG_TABLE}
+    m = find_material(material)
+    root = math.sqrt(m.youngs_modulus_pa / m.density_kg_m3) / math.sqrt(12.0)
+    if length_m is None:
+        h = thickness_m if thickness_m is not None else row["thickness_m"].default
+        lengths = (row["length_m"].maximum, row["length_m"].minimum)
+        return tuple(root * h / (2.0 * math.pi * L ** 2) for L in lengths)
+    thicknesses = (row["thickness_m"].minimum, row["thickness_m"].maximum)
+    return tuple(root * h / (2.0 * math.pi * length_m ** 2) for h in thicknesses)
+
+
 def _physical(base: float, material: str, thickness_m: float | None, length_m: float | None) -> dict[str, Any]:
     """The material, length and thickness that give ``base`` (Hz): the length for the given (or
     the model's default) thickness, else the thickness for a given length."""
@@ -228,8 +247,8 @@ def _physical(base: float, material: str, thickness_m: float | None, length_m: f
         p = row[name]
         if not p.minimum <= value <= p.maximum:
             raise ParameterError(
-                f"{article(material)} {material} ruler would need {name} = {value:.4g} {p.unit} to ring as recorded, out of range; "
-                f"allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material, thickness or length)")
+                f"{article(material)} {material} ruler would need {name} = {value:.4g} {p.unit} to ring as recorded, "
+                f"out of range; allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material, thickness or length)")
     return {"material": material, **result}
 
 
@@ -239,7 +258,8 @@ def length_for_base(base: float, fixed: dict[str, Any]) -> float:
     from ..models.twang import TWANG_TABLE
 
     p = TWANG_TABLE.resolve({k: v for k, v in fixed.items() if k != "length_m"})
-    return math.sqrt(bending_wave_constant(p.youngs_modulus_pa, p.density_kg_m3, p.thickness_m) / (2.0 * math.pi * base))
+    a = bending_wave_constant(p.youngs_modulus_pa, p.density_kg_m3, p.thickness_m)
+    return math.sqrt(a / (2.0 * math.pi * base))
 
 
 def fit_twang(targets: list[Target], *, sample_rate: float, material: str = "acrylic",
@@ -256,7 +276,7 @@ def fit_twang(targets: list[Target], *, sample_rate: float, material: str = "acr
     if not kept:
         raise ParameterError("the recording has no sustained partial to fit a twang to; allowed: a recording "
                              "of a ruler with at least one partial above 20 Hz")
-    base, ratio = _frequencies(kept, sample_rate)
+    base, ratio = _frequencies(kept, sample_rate, _bases(material, thickness_m, length_m))
     matches, unmatched = _match(kept, base, ratio, 0.5 * sample_rate)
     parameters: dict[str, Any] = _physical(base, material, thickness_m, length_m)
     parameters["short_length_ratio"] = ratio
