@@ -115,7 +115,7 @@ def test_fd_json_reports_each_mode_residual(tmp_path):
                                 catch_exceptions=False)
     assert result.exit_code == 0, result.output
     report = json.loads(result.stdout)
-    assert report["parameters"]["material"] == "aluminium"
+    assert report["parameters"]["material"] == "aluminium" and report["warnings"] == []
     assert [m["mode"] for m in report["modes"]][:2] == [1, 2]
     assert all(abs(m["cents"]) < 0.2 for m in report["modes"])
     text = CliRunner().invoke(main, ["fit", str(recording), "--model", "fd", "--set", "material=aluminium",

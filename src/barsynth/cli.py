@@ -1020,7 +1020,8 @@ def fit(path, model_name, max_modes, nominal_hz, assignments, output, as_json, p
         jobs.append((plot_path, lambda tmp: plot_fit(result, tmp, title=path.name)))
     _write_all(jobs)
     if as_json:
-        _json_out({"file": str(path), "preset": str(output), **result.to_json()})
+        _json_out({"file": str(path), "preset": str(output), "warnings": list(recording.warnings),
+                   **result.to_json()})
         return
     for line in _fit_lines(str(path), str(output), result):
         click.echo(line)
