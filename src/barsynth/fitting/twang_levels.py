@@ -38,6 +38,7 @@ FLOOR_PERCENTILE = 20.0
 REFERENCE_LEVEL_DB = -3.0  # the templates' level (the model's default)
 RANGE_DB = 80.0  # bands this far below the strongest are left out (the model culls quieter modes)
 ITERATIONS = 3
+NOISE_RENDERS = 6  # free-bar renders averaged into its template
 Q_STARTS = (0.6, 1.0, 1.6)
 MIX_TOPS = (1.0, 1.0, 4.0)  # full, short, free: the table's maxima
 MIX_NAMES = ("full_cantilever_gain", "short_cantilever_gain", "free_bar_gain")
@@ -129,9 +130,11 @@ def _templates(bands: _Bands, base: float, ratio: float, q: float, shape: float,
         members = [k for k in range(6 * g, 6 * g + 6) if gains[k] > 0.0]
         if not members:
             continue
-        x = model.render({**params, **dict(zip(MIX_NAMES, mixes))}, duration_s=seconds, sample_rate=sample_rate,
-                         normalize=False, dtype=np.float64, seed=1)
-        power = bands.spectra(x)
+        # the free bar is noise: its template is the mean of a few renders (the expected spectrum)
+        seeds = range(1, 1 + (NOISE_RENDERS if g == 2 else 1))
+        power = np.mean([bands.spectra(model.render({**params, **dict(zip(MIX_NAMES, mixes))}, duration_s=seconds,
+                                                    sample_rate=sample_rate, normalize=False, dtype=np.float64,
+                                                    seed=seed)) for seed in seeds], axis=0)
         owner = np.abs(np.log(np.maximum(bands.freqs[:, None], 1e-9) / freqs[members][None, :])).argmin(axis=1)
         for j, k in enumerate(members):
             out[k] = bands.energies(np.where(owner == j, power, 0.0))
@@ -173,7 +176,7 @@ def fit_levels(recording: np.ndarray, sample_rate: float, base: float, ratio: fl
         templates = _templates(bands, base, ratio, q, shape, sample_rate, fixed, f_ref, g_ref)
         held = g_ref > 0.0
         e_ref = np.stack([_half_energy(a_ref, half_s, h) for h in (0, 1)], axis=1)  # (18, 2)
-        measured_db = 10.0 * np.log10(np.maximum(measured, 1e-300))[:, signal].ravel()
+        observed = measured[:, signal].ravel()
 
         def residual(x: np.ndarray) -> np.ndarray:
             _, g, a = _gains(base, ratio, q * math.exp(x[0]), x[1], sample_rate, fixed)
@@ -182,7 +185,11 @@ def fit_levels(recording: np.ndarray, sample_rate: float, base: float, ratio: fl
             per_mode = scale[:, :, None] * templates  # (18, 2, bands)
             total = sum(math.exp(x[2 + k]) * per_mode[6 * k:6 * k + 6].sum(axis=0) for k in range(3))
             total = total + math.exp(x[5]) * floor
-            return 10.0 * np.log10(np.maximum(total, 1e-300))[:, signal].ravel() - measured_db
+            # deviance residuals of exponentially distributed band energies (Whittle): a noise band's
+            # energy scatters by several dB about its mean, and the mean of its dB lies below the dB
+            # of its mean, so least squares on dB would put the noise low
+            ratio_ = observed / np.maximum(total[:, signal].ravel(), 1e-300)
+            return np.sign(ratio_ - 1.0) * np.sqrt(np.maximum(2.0 * (ratio_ - 1.0 - np.log(ratio_)), 0.0))
 
         # each group's power to start from: non-negative least squares on the band energies,
         # each band's error relative to its energy (as the dB the fit then minimises)
