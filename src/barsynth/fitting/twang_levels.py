@@ -26,11 +26,12 @@ coincide), and its level is not that of a damped cosine. So the fit compares ene
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
-__all__ = ["fit_levels"]
+__all__ = ["fit_levels", "measure"]
 
 BANDS_PER_OCTAVE = 48
 LONGEST_S = 1.0
@@ -38,7 +39,7 @@ FLOOR_PERCENTILE = 20.0
 REFERENCE_LEVEL_DB = -3.0  # the templates' level (the model's default)
 RANGE_DB = 80.0  # bands this far below the strongest are left out (the model culls quieter modes)
 ITERATIONS = 3
-NOISE_RENDERS = 6  # free-bar renders averaged into its template
+NOISE_RENDERS = 4  # free-bar renders averaged into its template
 Q_STARTS = (0.6, 1.0, 1.6)
 MIX_TOPS = (1.0, 1.0, 4.0)  # full, short, free: the table's maxima
 MIX_NAMES = ("full_cantilever_gain", "short_cantilever_gain", "free_bar_gain")
@@ -48,20 +49,31 @@ def _gains(base: float, ratio: float, q: float, shape: float, sample_rate: float
            fixed: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The 18 modes' frequencies (Hz), gains (mixes 1, the level scale included) and decay rates
     (1/s), from the model's own design."""
-    from ..models.twang import TWANG_TABLE
     from ..models.twang.design import N_MODES, design, mode_lambdas, new_modes
+    from ..models.twang.table import ROWS
+
+    values = _controls(base, ratio, tuple(sorted(fixed.items()))).copy()
+    values[ROWS.q] = min(max(q, 50.0), 800.0)
+    values[ROWS.shape] = min(max(shape, 0.5), 10.0)
+    modes = new_modes()
+    _, norm = design(values, ROWS, mode_lambdas(), np.ones(N_MODES), float(sample_rate), 0.0, 0.0, modes)
+    return modes.frequency_hz.copy(), modes.gain * norm, modes.alpha_per_s.copy()
+
+
+@lru_cache(maxsize=64)
+def _controls(base: float, ratio: float, fixed: tuple[tuple[str, Any], ...]) -> np.ndarray:
+    """The twang's control vector for the ruler ``fixed`` with its modes at ``base`` (Hz), the
+    short length ``ratio`` and every mix 1 (q and shape are set per call)."""
+    from ..models.twang import TWANG_TABLE
     from ..models.twang.table import ROWS, control_vector
     from ..physics import bending_wave_constant
 
-    q, shape = min(max(q, 50.0), 800.0), min(max(shape, 0.5), 10.0)
-    p = TWANG_TABLE.resolve({**fixed, "q": q, "shape": shape, "short_length_ratio": ratio, "full_cantilever_gain": 1.0,
+    p = TWANG_TABLE.resolve({**dict(fixed), "short_length_ratio": ratio, "full_cantilever_gain": 1.0,
                              "short_cantilever_gain": 1.0, "free_bar_gain": 1.0})
     values = control_vector(p)
     a = bending_wave_constant(p.youngs_modulus_pa, p.density_kg_m3, p.thickness_m)
     values[ROWS.length_m] = math.sqrt(a / (2.0 * math.pi * base))
-    modes = new_modes()
-    _, norm = design(values, ROWS, mode_lambdas(), np.ones(N_MODES), float(sample_rate), 0.0, 0.0, modes)
-    return modes.frequency_hz.copy(), modes.gain * norm, modes.alpha_per_s.copy()
+    return values
 
 
 def _half_energy(alpha: np.ndarray, half_s: float, which: int) -> np.ndarray:
@@ -141,30 +153,43 @@ def _templates(bands: _Bands, base: float, ratio: float, q: float, shape: float,
     return out
 
 
-def fit_levels(recording: np.ndarray, sample_rate: float, base: float, ratio: float, q: float, shape: float,
-               fixed: dict[str, Any]) -> dict[str, float]:
-    """``q``, ``shape``, the three mixes and ``level_db`` of the twang (frequencies ``base``, ``ratio``
-    fixed) whose band energies best match ``recording`` (from its onset); see the module docstring.
-    ``q`` and ``shape`` start the search; ``fixed`` holds the ruler's material settings."""
-    from scipy.optimize import least_squares
-
+def measure(recording: np.ndarray, sample_rate: float) -> tuple[_Bands, np.ndarray, np.ndarray, np.ndarray] | None:
+    """What the fit compares with (frequency hypotheses share it): the bands, the recording's band
+    energies and noise floors per half, and the bands that hold signal (above the floor, within
+    RANGE_DB of the strongest). None for a recording too short to measure."""
     n = int(min(recording.size, round(LONGEST_S * sample_rate)))
     n -= n % 2
-    freqs, gains, _ = _gains(base, ratio, q, shape, sample_rate, fixed)
-    audible = freqs[(gains > 0.0) & (freqs >= 20.0)]
-    if n < 256 or audible.size == 0:
-        return {}
-    lo = max(15.0, 0.85 * float(audible.min()))
-    hi = min(0.49 * sample_rate, 1.2 * float(audible.max()))
-    bands = _Bands(sample_rate, n, lo, hi)
-    measured_power = bands.spectra(recording[:n])
-    measured = bands.energies(measured_power)
-    floor = bands.floor(measured_power)
+    if n < 256:
+        return None
+    bands = _Bands(sample_rate, n, 15.0, 0.49 * sample_rate)
+    power = bands.spectra(recording[:n])
+    measured = bands.energies(power)
+    floor = bands.floor(power)
     strongest = measured.max(axis=0)
     signal = ((strongest > 3.0 * floor.max(axis=0)) & (measured.min(axis=0) > 0.0)
               & (strongest > strongest.max() * 10.0 ** (-RANGE_DB / 10.0)))
+    return bands, measured, floor, signal
+
+
+def fit_levels(recording: np.ndarray, sample_rate: float, base: float, ratio: float, q: float, shape: float,
+               fixed: dict[str, Any], *, screen: bool = False,
+               measured: tuple[Any, ...] | None = None) -> tuple[dict[str, float], float]:
+    """``q``, ``shape``, the three mixes and ``level_db`` of the twang (frequencies ``base``, ``ratio``
+    fixed) whose band energies best match ``recording`` (from its onset); see the module docstring.
+    ``q`` and ``shape`` start the search; ``fixed`` holds the ruler's material settings. Returns
+    them and the fit's mean deviance per band (comparable between frequency hypotheses: the
+    bands span 15 Hz to nearly Nyquist whatever the modes). ``screen``: one start and no second
+    rendering of the templates (a quick look, to choose between frequency hypotheses);
+    ``measured``: :func:`measure` of the recording, if already taken."""
+    from scipy.optimize import least_squares
+
+    freqs, gains, _ = _gains(base, ratio, q, shape, sample_rate, fixed)
+    taken = measured if measured is not None else measure(recording, float(sample_rate))
+    if taken is None or not (gains > 0.0).any():
+        return {}, math.inf
+    bands, measured, floor, signal = taken
     if signal.sum() < 3:
-        return {}
+        return {}, math.inf
     half_s = bands.half / sample_rate
 
     def solve(q: float, shape: float) -> tuple[float, float, float, np.ndarray]:
@@ -208,18 +233,18 @@ def fit_levels(recording: np.ndarray, sample_rate: float, base: float, ratio: fl
         return float(solved.cost), q * math.exp(float(solved.x[0])), float(solved.x[1]), powers
 
     # Q from the analysis' T60s can be far off where a noise band sits on a mode: three starts
-    result = min((solve(q * factor, shape) for factor in Q_STARTS), key=lambda r: r[0])
-    for _ in range(ITERATIONS - 1):  # templates again at the result, until it settles
+    result = min((solve(q * factor, shape) for factor in ((1.0,) if screen else Q_STARTS)), key=lambda r: r[0])
+    for _ in range(0 if screen else ITERATIONS - 1):  # templates again at the result, until it settles
         again = solve(result[1], result[2])
         settled = abs(math.log(again[1] / result[1])) < 0.02 and abs(again[2] - result[2]) < 0.05
         result = again
         if settled:
             break
-    _, q, shape, power = result
+    cost, q, shape, power = result
     amplitude = np.sqrt(power)  # each group's mix x (the level's amplitude over the template's)
     amplitude = np.where(amplitude < 1e-3 * amplitude.max(), 0.0, amplitude)  # a group 60 dB down is not there
     scale = max(amplitude[0], amplitude[1] / MIX_TOPS[1], amplitude[2] / MIX_TOPS[2], 1e-12)
     mixes = {name: float(min(a / scale, top)) for name, a, top in zip(MIX_NAMES, amplitude, MIX_TOPS)}
     level = REFERENCE_LEVEL_DB + 20.0 * math.log10(scale)
-    return {"q": float(min(max(q, 50.0), 800.0)), "shape": float(min(max(shape, 0.5), 10.0)), **mixes,
-            "level_db": float(min(max(level, -60.0), 0.0))}
+    return ({"q": float(min(max(q, 50.0), 800.0)), "shape": float(min(max(shape, 0.5), 10.0)), **mixes,
+             "level_db": float(min(max(level, -60.0), 0.0))}, cost / max(int(signal.sum()), 1))
