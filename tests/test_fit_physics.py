@@ -51,9 +51,10 @@ def test_twang_fit_recovers_the_ruler(truth):
     for name in ("short_cantilever_gain", "free_bar_gain"):
         fitted = db(p[name], p["full_cantilever_gain"])
         assert abs(fitted - db(full[name], full["full_cantilever_gain"])) < 3.0, (name, fitted)
-    # the measured partials are the ruler's modes: most within a few cents (a noise band's is fuzzier)
+    # the measured partials are the ruler's modes: a cantilever mode alone to a cent, one the
+    # analysis hears between a free-bar band and the cantilever mode beside it within tens of cents
     residuals = sorted(abs(m["cents"]) for m in fit.details["modes"])
-    assert len(residuals) >= 3 and residuals[len(residuals) // 2] < 3.0, residuals
+    assert len(residuals) >= 3 and residuals[0] < 1.0 and residuals[-1] < 30.0, residuals
 
 
 def test_fitted_twang_preset_renders(tmp_path):
