@@ -905,12 +905,12 @@ def _note_lines(name: str, note: Any) -> list[str]:
 
 FIT_OPTIONS = {"banded": {"excitation": ("sample", "strike")},
                "twang": {"material": None, "thickness_m": float, "length_m": float},
-               "fd": {"material": None, "thickness_m": float, "width_m": float, "bc": None}}
+               "fd": {"material": None, "thickness_m": float, "width_m": float, "bc": None, "points": int}}
 """What ``fit --set`` takes per model: a choice, a number, or (None) a word the fit checks."""
 
 
 def _fit_options(model: str, assignments: tuple[str, ...]) -> dict[str, Any]:
-    from .checks import check_number, show_value
+    from .checks import check_number, check_whole, show_value
 
     known = FIT_OPTIONS[model]
     options: dict[str, Any] = {}
@@ -929,6 +929,11 @@ def _fit_options(model: str, assignments: tuple[str, ...]) -> dict[str, Any]:
             options[name] = value
         elif kind is float:
             options[name] = check_number(name, value, "m", minimum=0.0, minimum_exclusive=True, parse_text=True)
+        elif kind is int:
+            from .models.fd.table import FD_TABLE
+
+            grid = {p.name: p for p in FD_TABLE}[name]
+            options[name] = check_whole(name, value.strip(), "nodes", int(grid.minimum), int(grid.maximum))
         else:
             options[name] = value.strip()
     if "material" in options:
@@ -954,7 +959,7 @@ def _fit_options(model: str, assignments: tuple[str, ...]) -> dict[str, Any]:
               help="The pitch the note is meant to have (e.g. a soundfont's root key), to settle f0.")
 @click.option("--set", "-s", "assignments", multiple=True, metavar="NAME=VALUE",
               help="What the fit is given: banded excitation=sample|strike; twang material=, thickness_m= or "
-                   "length_m=; fd material=, thickness_m=, width_m=, bc= (repeatable).")
+                   "length_m=; fd material=, thickness_m=, width_m=, bc=, points= (repeatable).")
 @click.option("-o", "--output", required=True, type=click.Path(path_type=Path), metavar="PRESET.toml",
               help="The preset file to write.")
 @click.option("--json", "as_json", is_flag=True,
@@ -976,9 +981,10 @@ def fit(path, model_name, max_modes, nominal_hz, assignments, output, as_json, p
       barsynth render banded --preset marimba.toml --set frequency_hz=440 -o a4.wav
       barsynth fit ruler.wav --model twang --set material=acrylic -o ruler.toml --json
     """
-    from .audio_io import load_audio, output_format, output_subtype, write_audio
+    from .audio_io import output_format, output_subtype, write_audio
     from .checks import check_extension
     from .fitting import fit_recording
+    from .fitting.recording import read_recording
 
     options = _fit_options(model_name, assignments)
     _check_writable_dir(output, "output", extensions=(".toml",))
@@ -988,9 +994,19 @@ def fit(path, model_name, max_modes, nominal_hz, assignments, output, as_json, p
     if render_path is not None:
         _check_writable_dir(render_path, "render")
         check_extension(render_path, "parameter render =", (".wav", ".flac", ".ogg"))
-    samples, rate = load_audio(path)
-    result = fit_recording(samples, rate, model=model_name, max_modes=max_modes, nominal_hz=nominal_hz,
-                           options=options)
+    recording = read_recording(path)
+    for line in recording.warnings:
+        _warn(line)
+    rate = recording.sample_rate
+    try:
+        result = fit_recording(recording.samples, rate, model=model_name, max_modes=max_modes,
+                               nominal_hz=nominal_hz, options=options)
+    except (BarsynthError, KeyboardInterrupt):
+        raise
+    except Exception as exc:  # noqa: BLE001 - never a traceback: one line, status 2, no file
+        reason = " ".join(str(exc).split())[:200] or "no message"
+        raise BarsynthError(f"could not fit {show_text(str(path))} with the {model_name} model "
+                            f"({type(exc).__name__}: {reason}); nothing written") from None
     text = result.preset_toml()
     jobs: list[tuple[Path, Any]] = [(output, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))]
     heard = result.heard()
@@ -1004,7 +1020,8 @@ def fit(path, model_name, max_modes, nominal_hz, assignments, output, as_json, p
         jobs.append((plot_path, lambda tmp: plot_fit(result, tmp, title=path.name)))
     _write_all(jobs)
     if as_json:
-        _json_out({"file": str(path), "preset": str(output), **result.to_json()})
+        _json_out({"file": str(path), "preset": str(output), "warnings": list(recording.warnings),
+                   **result.to_json()})
         return
     for line in _fit_lines(str(path), str(output), result):
         click.echo(line)
@@ -1027,6 +1044,15 @@ def _fit_lines(name: str, preset: str, result: Any) -> list[str]:
         lines.append(f"{c.frequency_hz:>14.3f} {c.level_db:>10.1f} {number(c.t60_s, '.3f'):>8}   "
                      f"{number(c.resynthesis_hz, '.3f'):>10} {number(c.cents, '+.2f'):>7} "
                      f"{number(c.level_error_db, '+.1f'):>6} {number(t60, '+.1f'):>7}")
+    modes = result.details.get("modes") or []
+    if modes:  # twang and fd: each partial as the model's mode, and its residual
+        lines.append(f"{'partial (Hz)':>14} {'model mode':>20} {'model (Hz)':>11} {'residual (cents)':>16}")
+        for m in modes:
+            label = f"{m['group']} {m['number']}" if "group" in m else f"mode {m['mode']}"
+            lines.append(f"{m['frequency_hz']:>14.3f} {label:>20} {m['model_hz']:>11.3f} {m['cents']:>+16.3f}")
+    if result.details.get("unmatched_hz"):
+        lines.append("partials no mode of the model explains (Hz): "
+                     + ", ".join(f"{f:.3f}" for f in result.details["unmatched_hz"]))
     shown = {k: v for k, v in result.parameters.items() if k != "attack_samples"}
     lines.append("parameters: " + ", ".join(f"{k}={_shown(v)}" for k, v in shown.items()))
     return lines

@@ -210,7 +210,7 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
                   nominal_hz: float | None = None, options: dict[str, Any] | None = None) -> Fit:
     """Fit ``model`` (``banded``, ``twang`` or ``fd``) to a mono recording (full scale 1.0) at
     ``sample_rate`` Hz; ``options`` go to the model's fit (twang: material, thickness_m,
-    length_m; fd: material, thickness_m, width_m, bc; banded: excitation). Raises
+    length_m; fd: material, thickness_m, width_m, bc, points; banded: excitation). Raises
     :class:`~barsynth.errors.ParameterError` (one line) when there is no note to fit."""
     from ..analysis import analyze_note
     from ..analysis.distance import sine_baseline, spectral_distance
@@ -237,7 +237,8 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
     elif model == "twang":
         from .twang import fit_twang
 
-        fitted = fit_twang(_targets(analysis), sample_rate=rate, **options)
+        onset = int(round(analysis.onset_s * rate))
+        fitted = fit_twang(_targets(analysis), sample_rate=rate, recording=x[onset:], **options)
         parameters = fitted.parameters
         details["modes"] = [{"frequency_hz": m.target.frequency_hz, "group": m.group, "number": m.number,
                              "model_hz": m.model_hz, "cents": m.cents} for m in fitted.matches]
@@ -245,7 +246,7 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
     else:
         from .fd import fit_fd
 
-        fitted = fit_fd(_targets(analysis), **options)
+        fitted = fit_fd(_targets(analysis), sample_rate=rate, **options)
         parameters = fitted.parameters
         details["modes"] = [{"frequency_hz": m.target.frequency_hz, "mode": m.number, "model_hz": m.model_hz,
                              "cents": m.cents} for m in fitted.matches]

@@ -12,13 +12,18 @@ the thickness apart (a bar's modes scale with ``sqrt(E/rho) h / L^2``), so:
   frequencies in closed form (a profile's modes scale exactly as ``1 / L^2``);
 * the **undercut** (parabolic or circular, its depth, and its width where three or more
   partials tell it, as tuned bars are made) sets the ratios: searched first (bounded), with the
-  modes of each profile from the grid operator (:func:`barsynth.physics.grid.grid_modes`); a
-  uniform bar (depth 0) is kept unless an undercut brings the partials clearly closer;
+  modes of each profile from the very grid the model runs on (``points`` nodes, no
+  extrapolation: :func:`barsynth.physics.grid.grid_modes`) as the theta scheme rings them at the
+  recording's rate (``discrete_frequency``: a few cents flat up high), so the fitted bar plays
+  the partials where they were, not where a converged bar would put them; a uniform bar (depth
+  0) is kept unless an undercut brings the partials clearly closer;
 * the **losses** ``sigma0`` and ``sigma1`` (decay rate ``sigma0 + sigma1 k^2``, ``k`` the
   mode's wavenumber) by non-negative least squares on the partials' decay rates.
 
-Each measured partial is matched to the nearest mode (capped at 100 cents); a partial no
-mode comes near (a torsional mode, a resonator's, a hum) is reported unmatched.
+Each measured partial is matched to the nearest mode the fitted bar plays (``barsynth describe
+fd`` at the recording's rate gives the same frequencies; capped at 100 cents) and its residual
+reported in cents; a partial no mode comes near (a torsional mode, a resonator's, a hum) is
+reported unmatched.
 """
 
 from __future__ import annotations
@@ -32,13 +37,12 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..physics import materials as all_materials
-from .targets import Target, cents, strongest
+from .targets import Target, article, cents, strongest
 
 __all__ = ["FdFit", "fit_fd"]
 
 CAP_CENTS = 100.0
 MODES = 10  # modes of the model the partials may be matched to
-GRID_POINTS = 60  # nodes of the grid the search uses (extrapolated: about 0.01 cent)
 PROFILE_KINDS = ("parabolic", "circular")
 SETTLED_CENTS = 0.5  # a uniform bar this close (rms, cents) is not undercut
 IMPROVEMENT_CENTS = 1.0  # an undercut must bring the rms this much closer
@@ -88,15 +92,18 @@ def _choose_material(q: float | None) -> str:
 
 
 @lru_cache(maxsize=1024)
-def _shape_ratios(bc: str, depth: float, width: float, kind: str = "parabolic") -> tuple[float, ...]:
-    """The bar's first MODES frequencies (of a reference bar: only the ratios and the scale law
-    matter), for an undercut ``depth`` (fraction of the thickness) over ``width`` of the length."""
-    from ..physics.grid import grid_modes
+def _shape_ratios(bc: str, depth: float, width: float, kind: str = "parabolic",
+                  points: int = 100) -> tuple[float, ...]:
+    """The first MODES frequencies (Hz) of a reference bar on a grid of ``points`` nodes (only the
+    ratios and the scale law matter: a grid's modes scale exactly as ``sqrt(E/rho) h / L^2``), for
+    an undercut ``depth`` (fraction of the thickness) over ``width`` of the length."""
+    from ..physics.grid import grid_modes, rigid_mode_count
     from ..physics.profiles import Profile
 
     profile = None if depth <= 0.0 else Profile(kind, depth=depth, width=width)
+    count = min(MODES, points - rigid_mode_count(bc))
     f = grid_modes(youngs_modulus_pa=1e10, density_kg_m3=1000.0, length_m=1.0, thickness_m=0.01, bc=bc,
-                   count=MODES, profile=profile, points=GRID_POINTS)
+                   count=count, profile=profile, points=points, extrapolate=False)
     return tuple(float(v) for v in f)
 
 
@@ -120,21 +127,27 @@ def _match(targets: list[Target], modes_hz: np.ndarray) -> tuple[list[ModeMatch]
     return sorted(matches, key=lambda m: m.number), unmatched
 
 
-def _scale_for(targets: list[Target], ratios: np.ndarray) -> tuple[float, float]:
+def _scale_for(targets: list[Target], ratios: np.ndarray, played: Any = None) -> tuple[float, float]:
     """The frequency scale (Hz of the reference bar's mode list x scale) that best fits the
     partials to the modes ``ratios`` (each partial to its nearest mode), and the level-weighted
-    mean squared cents. The lowest partial is the bar's first mode (the fit is given the note's
-    partials from its fundamental up): else two partials fit any undercut deep enough."""
+    mean squared cents. ``played`` maps a grid's frequencies (Hz) to those the scheme rings
+    (default: as they are). The lowest partial is the bar's first mode (the fit is given the
+    note's partials from its fundamental up): else two partials fit any undercut deep enough."""
     freqs = np.array([t.frequency_hz for t in targets])
     weights = 10.0 ** ((np.array([t.level_db for t in targets]) - max(t.level_db for t in targets)) / 40.0)
+    ring = played if played is not None else (lambda f: f)
     scale = freqs.min() / ratios[0]
-    distance = cents(freqs[:, None], scale * ratios[None, :])
-    nearest = np.abs(distance).argmin(axis=1)
-    close = np.abs(distance[np.arange(freqs.size), nearest]) <= CAP_CENTS
-    if close.any():  # refine: the weighted mean of log-frequency offsets of the matched partials
+    score = CAP_CENTS ** 2
+    for _ in range(3):  # the scheme's warp is smooth and small: a few fixed-point steps settle it
+        distance = cents(freqs[:, None], ring(scale * ratios)[None, :])
+        nearest = np.abs(distance).argmin(axis=1)
+        close = np.abs(distance[np.arange(freqs.size), nearest]) <= CAP_CENTS
+        if not close.any():
+            break
+        # the weighted mean of log-frequency offsets of the matched partials
         offset = np.average(distance[np.arange(freqs.size), nearest][close], weights=weights[close])
         scale *= 2.0 ** (offset / 1200.0)
-        d = np.abs(cents(freqs[:, None], scale * ratios[None, :])).min(axis=1)
+        d = np.abs(cents(freqs[:, None], ring(scale * ratios)[None, :])).min(axis=1)
         score = float((weights * np.minimum(d, CAP_CENTS) ** 2).sum() / weights.sum())
     return scale, score
 
@@ -156,12 +169,15 @@ def _losses(matches: list[ModeMatch], wave_constant: float) -> tuple[float, floa
     return float(solution[0]), float(solution[1])
 
 
-def fit_fd(targets: list[Target], *, material: str | None = None, thickness_m: float | None = None,
-           width_m: float | None = None, bc: str = "free-free", undercut_width: float = 0.6,
-           fit_undercut: bool = True) -> FdFit:
-    """The bar whose modes best match ``targets`` (see the module docstring)."""
+def fit_fd(targets: list[Target], *, sample_rate: float = 48000.0, material: str | None = None,
+           thickness_m: float | None = None, width_m: float | None = None, bc: str = "free-free",
+           points: int | None = None, undercut_width: float = 0.6, fit_undercut: bool = True) -> FdFit:
+    """The bar whose modes, as the model plays them at ``sample_rate`` Hz on a grid of ``points``
+    nodes (default: the model's), best match ``targets`` (see the module docstring)."""
     from scipy.optimize import minimize, minimize_scalar
 
+    from ..models.fd.design import discrete_frequency
+    from ..models.fd.model import MODEL
     from ..models.fd.table import FD_TABLE
     from ..physics import bending_wave_constant, material as find_material
 
@@ -175,9 +191,15 @@ def fit_fd(targets: list[Target], *, material: str | None = None, thickness_m: f
     mat = find_material(name)
     h = thickness_m if thickness_m is not None else row["thickness_m"].default
     width = width_m if width_m is not None else row["width_m"].default
+    nodes = int(points) if points is not None else int(row["points"].default)
+    theta, steps = float(row["theta"].default), float(row["oversampling"].default) * float(sample_rate)
+
+    def played(f_hz: np.ndarray) -> np.ndarray:
+        return discrete_frequency(2.0 * math.pi * np.asarray(f_hz), theta, steps)
 
     def cost(depth: float, cut_width: float = undercut_width, kind: str = "parabolic") -> float:
-        return _scale_for(kept, np.array(_shape_ratios(bc, round(depth, 4), round(cut_width, 4), kind)))[1]
+        ratios = np.array(_shape_ratios(bc, round(depth, 4), round(cut_width, 4), kind, nodes))
+        return _scale_for(kept, ratios, played)[1]
 
     depth, cut_width, kind = 0.0, undercut_width, "parabolic"
     plain = cost(0.0)
@@ -199,8 +221,8 @@ def fit_fd(targets: list[Target], *, material: str | None = None, thickness_m: f
             best = min(best, candidate, key=lambda c: c[0])
         if best[0] < plain - IMPROVEMENT_CENTS ** 2:  # only an undercut that clearly explains more
             _, depth, cut_width, kind = best
-    ratios = np.array(_shape_ratios(bc, depth, cut_width, kind))
-    scale, _ = _scale_for(kept, ratios)
+    ratios = np.array(_shape_ratios(bc, depth, cut_width, kind, nodes))
+    scale, _ = _scale_for(kept, ratios, played)
     # modes of the reference bar are `ratios` (Hz); ours are `scale` times them: frequencies go as
     # sqrt(E/rho) h / L^2, so L = sqrt(reference scale law x ... ) in closed form
     length = math.sqrt(math.sqrt(mat.youngs_modulus_pa / mat.density_kg_m3) * h / (_reference_scale() * scale))
@@ -208,16 +230,17 @@ def fit_fd(targets: list[Target], *, material: str | None = None, thickness_m: f
         p = row[label]
         if not p.minimum <= value <= p.maximum:
             raise ParameterError(
-                f"a {name} bar {h * 1000:.3g} mm thick would need {label} = {value:.4g} {p.unit} to ring as recorded, "
-                f"out of range; allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material or thickness)")
-    modes_hz = scale * ratios
+                f"{article(name)} {name} bar {h * 1000:.3g} mm thick would need {label} = {value:.4g} {p.unit} to "
+                f"ring as recorded, out of range; allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material or thickness)")
+    parameters: dict[str, Any] = {"material": name, "length_m": length, "thickness_m": h, "width_m": width, "bc": bc,
+                                  "points": nodes}
+    if depth > 0.0:
+        parameters.update(profile=kind, undercut_depth=depth, undercut_width=cut_width)
+    # the residuals are those of the modes the fitted bar plays (what `barsynth describe fd` says)
+    modes_hz = np.array([m.frequency_hz for m in MODEL.describe(parameters, sample_rate=sample_rate)])
     matches, unmatched = _match(kept, modes_hz)
     a = bending_wave_constant(mat.youngs_modulus_pa, mat.density_kg_m3, h)
     sigma0, sigma1 = _losses(matches, a)
-    sigma0 = float(min(max(sigma0, row["sigma0_per_s"].minimum), row["sigma0_per_s"].maximum))
-    sigma1 = float(min(max(sigma1, row["sigma1_m2_s"].minimum), row["sigma1_m2_s"].maximum))
-    parameters: dict[str, Any] = {"material": name, "length_m": length, "thickness_m": h, "width_m": width, "bc": bc,
-                                  "sigma0_per_s": sigma0, "sigma1_m2_s": sigma1}
-    if depth > 0.0:
-        parameters.update(profile=kind, undercut_depth=depth, undercut_width=cut_width)
+    parameters["sigma0_per_s"] = float(min(max(sigma0, row["sigma0_per_s"].minimum), row["sigma0_per_s"].maximum))
+    parameters["sigma1_m2_s"] = float(min(max(sigma1, row["sigma1_m2_s"].minimum), row["sigma1_m2_s"].maximum))
     return FdFit(parameters, tuple(matches), tuple(unmatched), chosen)

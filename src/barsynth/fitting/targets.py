@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Target", "cents", "strongest"]
+__all__ = ["Target", "article", "cents", "strongest"]
 
 
 @dataclass(frozen=True)
@@ -34,3 +34,8 @@ def strongest(targets: list[Target], *, within_db: float = 40.0, at_most: int = 
     top = max(t.level_db for t in usable)
     kept = sorted((t for t in usable if t.level_db >= top - within_db), key=lambda t: -t.level_db)[:at_most]
     return sorted(kept, key=lambda t: t.frequency_hz)
+
+
+def article(word: str) -> str:
+    """``"an"`` before a vowel (an acrylic ruler), else ``"a"`` (a steel bar)."""
+    return "an" if word[:1].lower() in "aeiou" else "a"

@@ -19,6 +19,11 @@ and thickness, the length (or for a given length, the thickness).
 3. ``Q``: the level-weighted median of each matched partial's ``pi f T60 / ln 1000``.
 4. Levels: the beta shape ``l`` by a bounded scalar search (dB error against the model's gains,
    with the common offset solved exactly), then each group's mix gain from its mean residual.
+5. Given the recording itself, steps 3 and 4 only start the fit of Q, the shape, the mixes and
+   the level to its band energies (:mod:`.twang_levels`), which tells a free-bar band from the
+   cantilever mode it lies on; the five best frequency hypotheses of step 1 (distinct rulers) are each fitted so,
+   and the one whose spectrum comes closest is kept (a noise band can pull a measured partial
+   by tens of cents, enough to prefer a wrong hypothesis on frequencies alone).
 """
 
 from __future__ import annotations
@@ -31,15 +36,17 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..physics import bending_wave_constant, lambdas, material as find_material
-from .targets import Target, cents, strongest
+from .targets import Target, article, cents, strongest
 
-__all__ = ["TwangFit", "fit_twang"]
+__all__ = ["TwangFit", "fit_twang", "length_for_base"]
 
 RATIO_GRID = np.linspace(0.3, 0.95, 131)
 CAP_CENTS = 60.0  # a partial further than this from every mode counts as this far
 PAPER_RATIO = 0.7
 RATIO_PULL = 2.0  # cents of cost per 0.1 of ratio away from the paper's
 GROUPS = ("full-cantilever", "short-cantilever", "free-bar")
+MERGED_CENTS = 2.0  # modes closer than this sound as one: no ambiguity
+CANDIDATES = 5  # frequency hypotheses the recording's spectrum decides between
 
 
 @dataclass(frozen=True)
@@ -103,8 +110,11 @@ def _match(targets: list[Target], base: float, ratio: float, nyquist: float) -> 
     return matches, unmatched
 
 
-def _frequencies(targets: list[Target], sample_rate: float) -> tuple[float, float]:
-    """``(base, ratio)`` that best place the measured partials on the twang's modes."""
+def _frequencies(targets: list[Target], sample_rate: float, bases_hz: tuple[float, float] = (0.0, math.inf),
+                 count: int = 1) -> list[tuple[float, float]]:
+    """Up to ``count`` distinct ``(base, ratio)``, best first, that place the measured partials on
+    the twang's modes; a ``base`` outside ``bases_hz`` (a ruler out of the model's ranges) is
+    taken only if nothing else fits."""
     from scipy.optimize import least_squares
 
     nyquist = 0.5 * sample_rate
@@ -112,22 +122,42 @@ def _frequencies(targets: list[Target], sample_rate: float) -> tuple[float, floa
     levels = np.array([t.level_db for t in targets])
     weights = 10.0 ** ((levels - levels.max()) / 40.0)  # -40 dB weighs 0.1: levels matter, gently
     anchors = np.argsort(-levels)[:3]
-    best = (np.inf, 0.0, 0.0)
+    found = []
     for ratio in RATIO_GRID:
         mult = _multipliers(ratio)
         bases = (freqs[anchors][:, None] / mult[None, :]).ravel()
         bases = bases[bases > 0.0]
         scores = _cost(freqs, weights, bases[:, None] * mult[None, :], nyquist)
         scores = scores + RATIO_PULL * abs(ratio - PAPER_RATIO) * 10.0
-        i = int(np.argmin(scores))
-        if scores[i] < best[0]:
-            best = (float(scores[i]), float(bases[i]), float(ratio))
-    _, base, ratio = best
+        scores = scores + np.where((bases >= bases_hz[0]) & (bases <= bases_hz[1]), 0.0, 2.0 * CAP_CENTS ** 2)
+        for i in np.argsort(scores)[:count]:
+            found.append((float(scores[i]), float(bases[i]), float(ratio)))
+    chosen: list[tuple[float, float]] = []
+    for _, base, ratio in sorted(found):
+        if len(chosen) == count:
+            break
+        if all(abs(math.log(base / b)) > 0.03 for b, _ in chosen):  # another ruler, not another ratio
+            chosen.append(_refined(targets, base, ratio, nyquist, levels.max()))
+    return chosen
+
+
+def _refined(targets: list[Target], base: float, ratio: float, nyquist: float, top_db: float) -> tuple[float, float]:
+    """``(base, ratio)`` refined by least squares on the log-frequencies of the partials they match.
+    A partial whose mode has another within a few tens of cents (a free-bar band beside a
+    cantilever mode: the analysis hears one partial between them) weighs a tenth."""
+    from scipy.optimize import least_squares
+
     matches, _ = _match(targets, base, ratio, nyquist)
     if len(matches) >= 2:
         index = [GROUPS.index(m.group) * 6 + m.number - 1 for m in matches]
         f = np.array([m.target.frequency_hz for m in matches])
-        w = np.sqrt(10.0 ** ((np.array([m.target.level_db for m in matches]) - levels.max()) / 40.0))
+        w = np.sqrt(10.0 ** ((np.array([m.target.level_db for m in matches]) - top_db) / 40.0))
+        modes = base * _multipliers(ratio)
+        for j, k in enumerate(index):
+            apart = np.abs(cents(modes, modes[k]))
+            apart[k] = np.inf
+            if np.any((apart > MERGED_CENTS) & (apart < CAP_CENTS)):
+                w[j] *= math.sqrt(0.1)
 
         def residual(x: np.ndarray) -> np.ndarray:
             model = math.exp(x[0]) * _multipliers(x[1])[index]
@@ -206,6 +236,22 @@ def _design_all(p: Any, sample_rate: float, base: float) -> np.ndarray:
     return modes.gain.copy()
 
 
+def _bases(material: str, thickness_m: float | None, length_m: float | None) -> tuple[float, float]:
+    """The lowest and highest ``base`` (Hz) a ruler of ``material`` can have within the model's
+    ranges, with the thickness (or length) given and the other free."""
+    from ..models.twang import TWANG_TABLE
+
+    row = {p.name: p for p in TWANG_TABLE}
+    m = find_material(material)
+    root = math.sqrt(m.youngs_modulus_pa / m.density_kg_m3) / math.sqrt(12.0)
+    if length_m is None:
+        h = thickness_m if thickness_m is not None else row["thickness_m"].default
+        lengths = (row["length_m"].maximum, row["length_m"].minimum)
+        return tuple(root * h / (2.0 * math.pi * L ** 2) for L in lengths)
+    thicknesses = (row["thickness_m"].minimum, row["thickness_m"].maximum)
+    return tuple(root * h / (2.0 * math.pi * length_m ** 2) for h in thicknesses)
+
+
 def _physical(base: float, material: str, thickness_m: float | None, length_m: float | None) -> dict[str, Any]:
     """The material, length and thickness that give ``base`` (Hz): the length for the given (or
     the model's default) thickness, else the thickness for a given length."""
@@ -225,26 +271,77 @@ def _physical(base: float, material: str, thickness_m: float | None, length_m: f
         p = row[name]
         if not p.minimum <= value <= p.maximum:
             raise ParameterError(
-                f"a {material} ruler would need {name} = {value:.4g} {p.unit} to ring as recorded, out of range; "
-                f"allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material, thickness or length)")
+                f"{article(material)} {material} ruler would need {name} = {value:.4g} {p.unit} to ring as recorded, "
+                f"out of range; allowed: {p.minimum:g} to {p.maximum:g} {p.unit} (give another material, thickness or length)")
     return {"material": material, **result}
 
 
+def length_for_base(base: float, fixed: dict[str, Any]) -> float:
+    """The clamped length (m) at which the ruler ``fixed`` (material or E and rho, thickness)
+    has its full-length cantilever's ``base`` (Hz)."""
+    from ..models.twang import TWANG_TABLE
+
+    p = TWANG_TABLE.resolve({k: v for k, v in fixed.items() if k != "length_m"})
+    a = bending_wave_constant(p.youngs_modulus_pa, p.density_kg_m3, p.thickness_m)
+    return math.sqrt(a / (2.0 * math.pi * base))
+
+
 def fit_twang(targets: list[Target], *, sample_rate: float, material: str = "acrylic",
-              thickness_m: float | None = None, length_m: float | None = None) -> TwangFit:
+              thickness_m: float | None = None, length_m: float | None = None,
+              recording: np.ndarray | None = None) -> TwangFit:
     """The twang whose modes best match ``targets`` (see the module docstring).
 
     ``material`` (a name of ``barsynth materials``) and ``thickness_m`` (default: the model's) or
-    ``length_m`` fix what frequencies cannot tell apart. Raises :class:`ParameterError` (one line)
-    when there is nothing to fit or the ruler it needs is out of the model's ranges."""
+    ``length_m`` fix what frequencies cannot tell apart. With ``recording`` (mono, from the
+    onset, at ``sample_rate``) Q, the gain shape, the mixes and the level are then fitted to its
+    band energies (:mod:`.twang_levels`). Raises :class:`ParameterError` (one line) when there
+    is nothing to fit or the ruler it needs is out of the model's ranges."""
     kept = strongest(targets, within_db=40.0, at_most=18)
     if not kept:
         raise ParameterError("the recording has no sustained partial to fit a twang to; allowed: a recording "
                              "of a ruler with at least one partial above 20 Hz")
-    base, ratio = _frequencies(kept, sample_rate)
-    matches, unmatched = _match(kept, base, ratio, 0.5 * sample_rate)
-    parameters: dict[str, Any] = _physical(base, material, thickness_m, length_m)
-    parameters["short_length_ratio"] = ratio
-    parameters["q"] = float(min(max(_q(matches), 50.0), 800.0))
-    parameters.update(_levels(matches, base, ratio, sample_rate))
-    return TwangFit(parameters, base, tuple(matches), tuple(unmatched))
+    candidates = _frequencies(kept, sample_rate, _bases(material, thickness_m, length_m),
+                              count=1 if recording is None else CANDIDATES)
+    best: tuple[float, TwangFit] | None = None
+    screen = len(candidates) > 1
+    signal = None if recording is None else np.asarray(recording, dtype=float)
+    if signal is not None:
+        from .twang_levels import measure
+
+        measured = measure(signal, float(sample_rate))
+    for k, (base, ratio) in enumerate(candidates):
+        try:
+            parameters: dict[str, Any] = _physical(base, material, thickness_m, length_m)
+        except ParameterError:
+            if k == 0 and len(candidates) == 1:
+                raise
+            continue
+        matches, unmatched = _match(kept, base, ratio, 0.5 * sample_rate)
+        parameters["short_length_ratio"] = ratio
+        parameters["q"] = float(min(max(_q(matches), 50.0), 800.0))
+        parameters.update(_levels(matches, base, ratio, sample_rate))
+        cost = 0.0
+        if recording is not None and matches:
+            from .twang_levels import fit_levels
+
+            fixed = {"material": material, "thickness_m": parameters["thickness_m"]}
+            levels, cost = fit_levels(signal, sample_rate, base, ratio, parameters["q"],
+                                      parameters.get("shape", 1.5), fixed, screen=screen,
+                                      measured=measured)
+            parameters.update(levels)
+        fit = TwangFit(parameters, base, tuple(matches), tuple(unmatched))
+        if best is None or cost < best[0]:
+            best = (cost, fit)
+    if best is not None and screen and recording is not None and best[1].matches:
+        from .twang_levels import fit_levels
+
+        chosen = best[1]  # the hypothesis the spectrum chose, fitted in full from its quick look
+        fixed = {"material": material, "thickness_m": chosen.parameters["thickness_m"]}
+        levels, cost = fit_levels(signal, sample_rate, chosen.base_hz,
+                                  chosen.parameters["short_length_ratio"], chosen.parameters["q"],
+                                  chosen.parameters["shape"], fixed, measured=measured)
+        best = (cost, TwangFit({**chosen.parameters, **levels}, chosen.base_hz, chosen.matches, chosen.unmatched))
+    if best is None:  # every candidate's ruler is out of range: say so for the best one
+        _physical(candidates[0][0], material, thickness_m, length_m)
+        raise ParameterError("no ruler within the model's ranges rings as recorded; allowed: a recording of a ruler")
+    return best[1]
