@@ -178,3 +178,35 @@ def test_the_fitted_preset_plays_at_its_pitch_and_at_another_with_its_ratios(fit
     assert abs(1200.0 * math.log2(min(heard) / pitch)) < 1.0  # the fundamental sounds
     if frequency_hz is None:
         assert abs(1200.0 * math.log2(pitch / note.nominal_hz)) < 5.0
+
+
+def band_level_db(x: np.ndarray, rate: float, frequency_hz: float, width_cents: float = 50.0) -> float:
+    """Power of ``x`` within ``width_cents`` of ``frequency_hz`` (dB, Hann-windowed spectrum)."""
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size), 8 * x.size)) ** 2
+    freqs = np.fft.rfftfreq(8 * x.size, 1.0 / rate)
+    near = np.abs(1200.0 * np.log2(np.maximum(freqs, 1e-9) / frequency_hz)) <= width_cents
+    return float(10.0 * np.log10(spectrum[near].sum() + 1e-300))
+
+
+def test_the_recorded_attack_follows_the_pitch(fitted):
+    """The attack sample (the recording less the modes as the model plays them) holds sines at
+    the recording's partials; played at another pitch it is transposed with the note
+    (attack_pitch_hz), so the onset has nothing at the old f0: over the first 100 ms the old
+    f0's band is far below the new one's, and within a few dB of it without the transposition
+    (the defect this pins)."""
+    note, folder, report = fitted
+    old = report["parameters"]["frequency_hz"]
+    assert report["parameters"]["attack_pitch_hz"] == pytest.approx(old)
+    rate, new = 44100, 0.75 * old
+    levels = {}
+    for pitch_hz in (old, 0.0):
+        wav = folder / f"onset-{pitch_hz}.wav"
+        result = run("render", "banded", "--preset", str(folder / "marimba.toml"), "--duration", "0.3",
+                     "--sample-rate", str(rate), "--set", f"frequency_hz={new}", "--set",
+                     f"attack_pitch_hz={pitch_hz}", "-o", str(wav))
+        assert result.exit_code == 0, result.output
+        played, _ = soundfile.read(wav)
+        onset = played[:int(0.1 * rate)]
+        levels[pitch_hz] = band_level_db(onset, rate, old) - band_level_db(onset, rate, new)
+    assert levels[old] < -20.0, levels
+    assert levels[0.0] > levels[old] + 15.0, levels

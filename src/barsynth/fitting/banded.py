@@ -217,7 +217,7 @@ def fit_banded(analysis: NoteAnalysis, recording: np.ndarray, sample_rate: float
         played = calibration * 10.0 ** ((level + np.array(parameters["mode_gains_db"])) / 20.0)
         attack, peak = _attack(analysis, recording, sample_rate, chosen, played)
         parameters.update(attack_samples=tuple(round(float(v), 6) + 0.0 for v in attack),
-                          attack_rate_hz=int(round(sample_rate)))
+                          attack_rate_hz=int(round(sample_rate)), attack_pitch_hz=f0)
         # the attack against the modes as in the recording: in the model's raw output the modes
         # are the recording's scaled by 10^(-level/20); the attack scales with velocity / (1 m/s)
         attack_db = (20.0 * math.log10(peak) - level - 20.0 * math.log10(velocity)) if peak > 0.0 else -120.0

@@ -73,6 +73,7 @@ class BandedParams:
     bow_ramp_ms: float
     attack_samples: tuple[float, ...]
     attack_rate_hz: int
+    attack_pitch_hz: float
     attack_level_db: float
     level_db: float
 
