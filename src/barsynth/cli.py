@@ -909,6 +909,30 @@ FIT_OPTIONS = {"banded": {"excitation": ("sample", "strike")},
 """What ``fit --set`` takes per model: a choice, a number, or (None) a word the fit checks."""
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    """Do ``a`` and ``b`` name one file (the same path after links, or hard links of one)?"""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist yet: not the same file
+        return False
+
+
+def _refuse_overwriting(recording: Path, outputs: dict[str, Path | None]) -> None:
+    """One line, before anything is read, when an output would replace the recording or another
+    output (``fit -o x.toml --render in.wav`` must not destroy ``in.wav``)."""
+    given = [(name, path) for name, path in outputs.items() if path is not None]
+    for i, (name, path) in enumerate(given):
+        if _same_file(path, recording):
+            raise ParameterError(f"parameter {name} = {show_text(str(path))} is the recording itself; allowed: "
+                                 "another file (the fit never replaces its recording)")
+        for other, earlier in given[:i]:
+            if _same_file(path, earlier):
+                raise ParameterError(f"parameter {name} = {show_text(str(path))} is also the {other} file; "
+                                     "allowed: a file of its own for each output")
+
+
 def _fit_options(model: str, assignments: tuple[str, ...]) -> dict[str, Any]:
     from .checks import check_number, check_whole, show_value
 
@@ -933,7 +957,9 @@ def _fit_options(model: str, assignments: tuple[str, ...]) -> dict[str, Any]:
             from .models.fd.table import FD_TABLE
 
             grid = {p.name: p for p in FD_TABLE}[name]
-            options[name] = check_whole(name, value.strip(), "nodes", int(grid.minimum), int(grid.maximum))
+            typed = value.strip()
+            number: Any = int(typed) if typed.lstrip("+-").isdigit() and len(typed) <= 12 else typed
+            options[name] = check_whole(name, number, "nodes", int(grid.minimum), int(grid.maximum))
         else:
             options[name] = value.strip()
     if "material" in options:
@@ -994,6 +1020,7 @@ def fit(path, model_name, max_modes, nominal_hz, assignments, output, as_json, p
     if render_path is not None:
         _check_writable_dir(render_path, "render")
         check_extension(render_path, "parameter render =", (".wav", ".flac", ".ogg"))
+    _refuse_overwriting(path, {"output": output, "plot": plot_path, "render": render_path})
     recording = read_recording(path)
     for line in recording.warnings:
         _warn(line)

@@ -255,7 +255,8 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
     onset = int(round(analysis.onset_s * rate))
     recording = x[onset:]
     seconds = min(LONGEST_RENDER_S, max(recording.size / rate, 0.05))
-    highest = max(float(f) for f in (np.array(parameters.get("mode_ratios", (1.0,))) * analysis.f0_hz))
+    pitch = float(parameters.get("frequency_hz", analysis.f0_hz))  # banded: the nominal pitch, where it tuned to it
+    highest = max(float(f) for f in (np.array(parameters.get("mode_ratios", (1.0,))) * pitch))
     resynthesis = _render(model, parameters, rate, seconds, highest)
     modes = resynthesis
     if model == "banded" and parameters.get("excitation") == "sample":

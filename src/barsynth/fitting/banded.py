@@ -183,7 +183,8 @@ def fit_banded(analysis: NoteAnalysis, recording: np.ndarray, sample_rate: float
     if nominal_hz is not None and abs(1200.0 * math.log2(f0 / nominal_hz)) > NOMINAL_CENTS:
         f0 = float(nominal_hz)  # the partial taken for f0 is not the pitch the note is played at
     if not row["frequency_hz"].minimum <= f0 <= row["frequency_hz"].maximum:
-        raise ParameterError(f"the note's fundamental, {f0:.6g} Hz, is out of the banded model's range; allowed: "
+        what = "the nominal pitch" if f0 != float(analysis.f0_hz) else "the note's fundamental"
+        raise ParameterError(f"{what}, {f0:.6g} Hz, is out of the banded model's range; allowed: "
                              f"{row['frequency_hz'].minimum:g} to {row['frequency_hz'].maximum:g} Hz")
     ratios = [p.frequency_hz / f0 for p in chosen]
     keep = [row["mode_ratios"].minimum <= r <= row["mode_ratios"].maximum for r in ratios]
