@@ -56,7 +56,7 @@ class BandedFit:
     calibration_db: tuple[float, ...] = field(default=())
 
 
-def _chosen(analysis: NoteAnalysis, max_modes: int, sample_rate: float) -> tuple[list[NotePartial], list[NotePartial]]:
+def _chosen(analysis: NoteAnalysis, max_modes: int) -> tuple[list[NotePartial], list[NotePartial]]:
     partials = list(analysis.partials)
     if not partials or analysis.f0_hz is None:
         raise ParameterError("the recording has no note to fit (no sustained partial with a fundamental); "
@@ -178,7 +178,7 @@ def fit_banded(analysis: NoteAnalysis, recording: np.ndarray, sample_rate: float
 
     table = get_model("banded").table
     row = {p.name: p for p in table}
-    chosen, left_out = _chosen(analysis, min(max_modes, row["mode_ratios"].max_items), sample_rate)
+    chosen, left_out = _chosen(analysis, min(max_modes, row["mode_ratios"].max_items))
     f0 = float(analysis.f0_hz)
     if nominal_hz is not None and abs(1200.0 * math.log2(f0 / nominal_hz)) > NOMINAL_CENTS:
         f0 = float(nominal_hz)  # the partial taken for f0 is not the pitch the note is played at
