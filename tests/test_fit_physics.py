@@ -96,6 +96,11 @@ def test_fd_fit_recovers_the_bar(truth, given):
     modes = fit.details["modes"]
     assert len(modes) >= 2
     assert max(abs(m["cents"]) for m in modes) < 0.2  # well below a cent
+    # the losses: the rendered bar's own, so each partial's T60 in the resynthesis within 3 %
+    assert abs(p["sigma0_per_s"] / truth.get("sigma0_per_s", 1.0) - 1.0) < 0.05
+    assert abs(p["sigma1_m2_s"] / truth.get("sigma1_m2_s", 0.002) - 1.0) < 0.05
+    errors = [r.t60_error for r in fit.comparison if r.t60_error is not None]
+    assert len(errors) >= 2 and max(abs(e) for e in errors) < 0.03, errors
     # each residual is what `describe` says about the fitted bar at the recording's rate
     played = get_model("fd").describe(p, sample_rate=RATE)
     for m in modes:

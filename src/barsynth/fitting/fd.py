@@ -17,8 +17,11 @@ the thickness apart (a bar's modes scale with ``sqrt(E/rho) h / L^2``), so:
   recording's rate (``discrete_frequency``: a few cents flat up high), so the fitted bar plays
   the partials where they were, not where a converged bar would put them; a uniform bar (depth
   0) is kept unless an undercut brings the partials clearly closer;
-* the **losses** ``sigma0`` and ``sigma1`` (decay rate ``sigma0 + sigma1 k^2``, ``k`` the
-  mode's wavenumber) by non-negative least squares on the partials' decay rates.
+* the **losses** ``sigma0`` and ``sigma1`` by non-negative least squares on the partials'
+  decay rates, relative (each partial's T60 counts alike). A mode's decay rate is linear in the
+  two, but its coefficients are the fitted bar's as the scheme plays it (an undercut bar's
+  wavenumbers are not a uniform one's, and the step slows the decay of high modes): they are
+  read off ``describe`` of the fitted bar at two probe settings.
 
 Each measured partial is matched to the nearest mode the fitted bar plays (``barsynth describe
 fd`` at the recording's rate gives the same frequencies; capped at 100 cents) and its residual
@@ -152,20 +155,32 @@ def _scale_for(targets: list[Target], ratios: np.ndarray, played: Any = None) ->
     return scale, score
 
 
-def _losses(matches: list[ModeMatch], wave_constant: float) -> tuple[float, float]:
+PROBE_SIGMA0, PROBE_SIGMA1 = 1.0, 0.01  # the two loss settings describe is asked at
+
+
+def _losses(matches: list[ModeMatch], parameters: dict[str, Any], sample_rate: float) -> tuple[float, float]:
     """``(sigma0, sigma1)`` (1/s, m^2/s) from the matched partials' decay rates by non-negative
-    least squares, rate = sigma0 + sigma1 k^2 with k^2 = omega / a (a uniform bar's relation)."""
+    least squares on relative errors. Each mode's rate is ``sigma0 c0 + sigma1 c1``; ``c0`` and
+    ``c1`` come from ``describe`` of the fitted bar with ``(PROBE_SIGMA0, 0)`` and with
+    ``(0.01, PROBE_SIGMA1)`` (the table's least ``sigma0``), at the recording's rate."""
     from scipy.optimize import nnls
 
-    rows, rates = [], []
-    for m in matches:
-        t60 = m.target.t60_s
-        if t60 is not None and math.isfinite(t60) and t60 > 0:
-            rows.append([1.0, 2.0 * math.pi * m.model_hz / wave_constant])
-            rates.append(LN1000 / t60)
-    if not rows:
+    from ..models.fd.model import MODEL
+
+    def rates(sigma0: float, sigma1: float) -> np.ndarray:
+        modes = MODEL.describe({**parameters, "sigma0_per_s": sigma0, "sigma1_m2_s": sigma1}, sample_rate=sample_rate)
+        return np.array([LN1000 / m.t60_s if m.t60_s else 0.0 for m in modes])
+
+    timed = [m for m in matches if m.target.t60_s is not None and math.isfinite(m.target.t60_s) and m.target.t60_s > 0]
+    if not timed:
         return 1.0, 0.002  # the model's defaults
-    solution, _ = nnls(np.array(rows), np.array(rates))
+    first, second = rates(PROBE_SIGMA0, 0.0), rates(0.01, PROBE_SIGMA1)
+    c0 = first / PROBE_SIGMA0
+    c1 = (second - 0.01 * c0) / PROBE_SIGMA1
+    wanted = np.array([LN1000 / m.target.t60_s for m in timed])
+    index = [m.number - 1 for m in timed]
+    columns = np.stack([c0[index], c1[index]], axis=1) / wanted[:, None]
+    solution, _ = nnls(columns, np.ones(len(timed)))
     return float(solution[0]), float(solution[1])
 
 
@@ -179,7 +194,7 @@ def fit_fd(targets: list[Target], *, sample_rate: float = 48000.0, material: str
     from ..models.fd.design import discrete_frequency
     from ..models.fd.model import MODEL
     from ..models.fd.table import FD_TABLE
-    from ..physics import bending_wave_constant, material as find_material
+    from ..physics import material as find_material
 
     kept = strongest(targets, within_db=40.0, at_most=MODES)
     if not kept:
@@ -239,8 +254,7 @@ def fit_fd(targets: list[Target], *, sample_rate: float = 48000.0, material: str
     # the residuals are those of the modes the fitted bar plays (what `barsynth describe fd` says)
     modes_hz = np.array([m.frequency_hz for m in MODEL.describe(parameters, sample_rate=sample_rate)])
     matches, unmatched = _match(kept, modes_hz)
-    a = bending_wave_constant(mat.youngs_modulus_pa, mat.density_kg_m3, h)
-    sigma0, sigma1 = _losses(matches, a)
+    sigma0, sigma1 = _losses(matches, parameters, sample_rate)
     parameters["sigma0_per_s"] = float(min(max(sigma0, row["sigma0_per_s"].minimum), row["sigma0_per_s"].maximum))
     parameters["sigma1_m2_s"] = float(min(max(sigma1, row["sigma1_m2_s"].minimum), row["sigma1_m2_s"].maximum))
     return FdFit(parameters, tuple(matches), tuple(unmatched), chosen)
