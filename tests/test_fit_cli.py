@@ -83,3 +83,12 @@ def test_a_nominal_pitch_above_f0_keeps_the_high_partials(tmp_path):
     assert report["parameters"]["frequency_hz"] == pytest.approx(2000.0)
     high = [p for p in report["partials"] if abs(p["frequency_hz"] - 11500.0) < 50.0]
     assert high and high[0]["cents"] is not None and abs(high[0]["cents"]) < 3.0, high
+
+
+def test_twang_refuses_both_thickness_and_length(tmp_path):
+    recording = tmp_path / "note.wav"
+    two_partials(recording, 110.0, 110.0 * 6.27)
+    result = run("fit", str(recording), "--model", "twang", "--set", "thickness_m=0.002", "--set", "length_m=0.3",
+                 "-o", str(tmp_path / "ruler.toml"))
+    assert result.exit_code == 2 and "thickness_m" in result.output and "length_m" in result.output
+    assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "ruler.toml").exists()

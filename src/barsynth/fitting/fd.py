@@ -76,10 +76,6 @@ class FdFit:
     unmatched: tuple[Target, ...] = field(default=())
     material_chosen_by_q: bool = False
 
-    @property
-    def rms_cents(self) -> float:
-        return float(np.sqrt(np.mean([m.cents ** 2 for m in self.matches]))) if self.matches else math.nan
-
 
 def _q_of(targets: list[Target]) -> float | None:
     qs = [math.pi * t.frequency_hz * t.t60_s / LN1000 for t in targets

@@ -72,10 +72,6 @@ class TwangFit:
     matches: tuple[Match, ...]
     unmatched: tuple[Target, ...] = field(default=())
 
-    @property
-    def rms_cents(self) -> float:
-        return float(np.sqrt(np.mean([m.cents ** 2 for m in self.matches]))) if self.matches else math.nan
-
 
 def _multipliers(ratio: float | np.ndarray) -> np.ndarray:
     """Each mode's frequency / base, shape (..., 18): cantilever, short cantilever, free bar."""
@@ -115,7 +111,6 @@ def _frequencies(targets: list[Target], sample_rate: float, bases_hz: tuple[floa
     """Up to ``count`` distinct ``(base, ratio)``, best first, that place the measured partials on
     the twang's modes; a ``base`` outside ``bases_hz`` (a ruler out of the model's ranges) is
     taken only if nothing else fits."""
-    from scipy.optimize import least_squares
 
     nyquist = 0.5 * sample_rate
     freqs = np.array([t.frequency_hz for t in targets])
@@ -296,6 +291,9 @@ def fit_twang(targets: list[Target], *, sample_rate: float, material: str = "acr
     onset, at ``sample_rate``) Q, the gain shape, the mixes and the level are then fitted to its
     band energies (:mod:`.twang_levels`). Raises :class:`ParameterError` (one line) when there
     is nothing to fit or the ruler it needs is out of the model's ranges."""
+    if thickness_m is not None and length_m is not None:  # the frequencies fix one from the other
+        raise ParameterError(f"parameters thickness_m = {thickness_m:g} m and length_m = {length_m:g} m are both "
+                             "given; allowed: one of them (the recording's frequencies fix the other)")
     kept = strongest(targets, within_db=40.0, at_most=18)
     if not kept:
         raise ParameterError("the recording has no sustained partial to fit a twang to; allowed: a recording "
@@ -320,7 +318,7 @@ def fit_twang(targets: list[Target], *, sample_rate: float, material: str = "acr
         parameters["short_length_ratio"] = ratio
         parameters["q"] = float(min(max(_q(matches), 50.0), 800.0))
         parameters.update(_levels(matches, base, ratio, sample_rate))
-        cost = 0.0
+        cost = 0.0 if recording is None else math.inf  # a ruler that explains no partial never wins
         if recording is not None and matches:
             from .twang_levels import fit_levels
 

@@ -16,9 +16,11 @@ coincide), and its level is not that of a damped cosine. So the fit compares ene
 3. Any other ``Q`` and shape scale each mode's template in closed form: its gain (the model's
    own design, normalisation included) squared, and each half's energy by
    ``int exp(-2 alpha t) dt`` with ``alpha = pi f / Q``; the mixes add power (groups are
-   independent: cosines and noise). Bounded least squares on the dB of the band energies
-   finds ``Q``, ``l`` and each group's power; the templates are rendered again at the result and
-   the fit repeated once.
+   independent: cosines and noise). A bounded fit of the band energies by their deviance as
+   exponentially distributed values (Whittle's likelihood: least squares on their dB would put
+   a noise band's energy, which scatters by several dB, too low) finds ``Q``, ``l`` and each
+   group's power; the templates are rendered again at the result and the fit repeated, at most
+   :data:`ITERATIONS` times in all.
 4. The full-length cantilever's mix is 1 (the paper's) unless another group needs more room; the
    level then follows from the group powers.
 """
