@@ -92,3 +92,17 @@ def test_twang_refuses_both_thickness_and_length(tmp_path):
                  "-o", str(tmp_path / "ruler.toml"))
     assert result.exit_code == 2 and "thickness_m" in result.output and "length_m" in result.output
     assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "ruler.toml").exists()
+
+
+def test_a_twang_fit_is_compared_partial_by_partial():
+    """The twang's free bar is band-passed noise: its resynthesis is measured over the recording's
+    noise floor, so each partial of a ruler finds its counterpart (without: 5 of 10)."""
+    from test_fit_physics import RATE as TWANG_RATE, TWANGS, rendered
+
+    from barsynth.fitting import fit_recording
+
+    x = rendered("twang", TWANGS[0], seconds=2.0)
+    fit = fit_recording(x, TWANG_RATE, model="twang", options={"material": "acrylic"})
+    found = [r for r in fit.comparison if r.cents is not None]
+    assert len(fit.comparison) >= 8 and len(found) >= 0.8 * len(fit.comparison), fit.comparison
+    assert max(abs(r.cents) for r in found) < 10.0

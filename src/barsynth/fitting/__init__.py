@@ -34,6 +34,7 @@ MATCH_CENTS = 50.0  # a resynthesised partial this close to a recorded one is it
 LONGEST_RENDER_S = 10.0
 SILENT_ATTACK_DB = -120.0  # the sample exciter's quietest attack: the modes alone
 ALIGN_ON = 5  # levels are aligned on the median over this many strongest matched partials
+FLOOR_SEED = 7  # the noise a twang's resynthesis is measured over (see fit_recording)
 
 
 @dataclass(frozen=True)
@@ -185,6 +186,20 @@ def _counterparts(recorded: list[Any], found: list[Any]) -> list[Any]:
     return out
 
 
+def _over_the_floor(resynthesis: np.ndarray, recording: np.ndarray, floor_db: float | None) -> np.ndarray:
+    """``resynthesis`` with white noise (seeded) as far below its peak as the recording's noise
+    floor is below the recording's. The twang's free bar is noise through band-passes: the
+    analysis tells such a band from a partial only over a noise floor, and on a noiseless render
+    it found 5 of a ruler's 10 partials (with the floor: all 10)."""
+    if floor_db is None or not resynthesis.size or not recording.size:
+        return resynthesis
+    recorded, mine = float(np.max(np.abs(recording))), float(np.max(np.abs(resynthesis)))
+    if recorded <= 0.0 or mine <= 0.0:
+        return resynthesis
+    level = mine * 10.0 ** (floor_db / 20.0) / recorded
+    return resynthesis + level * np.random.default_rng(FLOOR_SEED).standard_normal(resynthesis.size)
+
+
 def _render(model: str, parameters: dict[str, Any], sample_rate: float, seconds: float,
             highest_hz: float = 0.0) -> np.ndarray:
     """The fit rendered raw at ``sample_rate``. The banded model plays no mode above a quarter of
@@ -263,6 +278,8 @@ def fit_recording(samples: Any, sample_rate: float, *, model: str = "banded", ma
         # the partials are compared with the modes alone: until the attack sample has faded the
         # resynthesis is the recording itself, then partly, which says nothing of the modes
         modes = _render(model, {**parameters, "attack_level_db": SILENT_ATTACK_DB}, rate, seconds, highest)
+    if model == "twang":
+        modes = _over_the_floor(modes, recording, analysis.noise_floor_db)
     comparison = _compare(analysis, modes, rate)
     distance = spectral_distance(recording, resynthesis, rate)
     f0 = analysis.partials[0]
