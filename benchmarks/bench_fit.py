@@ -51,6 +51,14 @@ def cases() -> list[tuple[str, str, np.ndarray, float, float | None]]:
     synthetic, _ = fq.synthetic("marimba", None)
     out = [("synthetic marimba preset (noise, room)", model, synthetic[: int(SECONDS * fq.SYNTH_RATE)],
             float(fq.SYNTH_RATE), None) for model in ("banded", "twang", "fd")]
+    from barsynth.models import get_model
+
+    # the recordings each model is for: a ruler for the twang, a bar for fd (-40 dB noise, seeded)
+    for model, settings in (("twang", {}), ("fd", {"material": "aluminium"})):
+        x = get_model(model).render(settings, duration_s=SECONDS, sample_rate=fq.SYNTH_RATE, seed=1,
+                                    dtype=np.float64)
+        x = x + 0.01 * np.max(np.abs(x)) * np.random.default_rng(2).standard_normal(x.size)
+        out.append((f"barsynth's {model} default (noise -40 dB)", model, x, float(fq.SYNTH_RATE), None))
     path = fq.FONTS["MuseScore"]
     if path.exists():
         for note in fq.notes({"MuseScore": path}, fq.KEYS, ("marimba",)):
