@@ -17,12 +17,14 @@ from .damping import (
 )
 from .materials import Material, material, materials
 from .modes import bar_frequencies, bending_wave_constant, mode_shape
+from .timoshenko_grid import TwoFieldGrid, timoshenko_grid, timoshenko_grid_modes
 from .tuned_bar import TunedBar, tune_bar
 
 __all__ = [
     "BOUNDARY_CONDITIONS",
     "Material",
     "TunedBar",
+    "TwoFieldGrid",
     "alpha_from_q",
     "alpha_from_t60",
     "bar_frequencies",
@@ -36,5 +38,7 @@ __all__ = [
     "q_from_t60",
     "t60_from_alpha",
     "t60_from_q",
+    "timoshenko_grid",
+    "timoshenko_grid_modes",
     "tune_bar",
 ]

@@ -162,6 +162,10 @@ def grid_eigen(grid: BarGrid, count: int) -> tuple[np.ndarray, np.ndarray]:
     mass-normalised shapes (columns, ``v^T M v = 1``), rigid-body motions left out."""
     from scipy.linalg import eig_banded
 
+    if not isinstance(grid, BarGrid):  # the two-field (Timoshenko) grid has its own solver
+        from .timoshenko_grid import two_field_eigen
+
+        return two_field_eigen(grid, count)
     skip = rigid_mode_count(grid.bc)
     size = grid.mass.size
     if count + skip > size:
