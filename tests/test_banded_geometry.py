@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from scipy.optimize import brentq
+from streaming import play
 
 from barsynth.analysis import measure_partial
 from barsynth.cli import main
@@ -18,9 +19,12 @@ from barsynth.models import get_model
 from barsynth.models.banded.geometry import geometry_bar
 from barsynth.physics import bar_frequencies
 from barsynth.physics.profiles import Profile
-from barsynth.physics.timoshenko_grid import timoshenko_grid, timoshenko_grid_modes, two_field_eigen
+from barsynth.physics.timoshenko_grid import (
+    timoshenko_grid,
+    timoshenko_grid_modes,
+    two_field_eigen,
+)
 from barsynth.presets import preset_parameters
-from streaming import play
 
 MODEL = get_model("banded")
 RATE = 48000
