@@ -191,3 +191,24 @@ def test_the_tuned_presets_ring_at_their_ratio(preset, ratio):
     skip = int(0.05 * RATE)
     heard = [measure_partial(x[skip:], RATE, fk).frequency_hz for fk in f[:2]]
     assert heard[1] / heard[0] == pytest.approx(ratio, rel=1e-3), heard
+
+
+def test_a_design_from_disk_is_the_computed_one_bit_for_bit(tmp_path, monkeypatch):
+    from barsynth import designcache
+    from barsynth.models.banded import geometry
+
+    monkeypatch.setenv("BARSYNTH_CACHE_DIR", str(tmp_path))
+    designcache.enable()
+    try:
+        p = MODEL.resolve({**MARIMBA, "undercut_depth": 0.4})
+        geometry._kept.cache_clear()
+        computed = geometry_bar(p)
+        geometry._kept.cache_clear()
+        stored = geometry_bar(p)
+        geometry._kept.cache_clear()
+    finally:
+        designcache.enable(False)
+    assert stored is not computed and len(list((tmp_path / "designs").glob("geometrybar-*.json"))) == 1
+    for name in ("frequencies_hz", "x", "shapes"):
+        assert np.array_equal(getattr(stored, name), getattr(computed, name))
+    assert stored.mass_kg == computed.mass_kg
