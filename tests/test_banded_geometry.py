@@ -212,3 +212,24 @@ def test_a_design_from_disk_is_the_computed_one_bit_for_bit(tmp_path, monkeypatc
     for name in ("frequencies_hz", "x", "shapes"):
         assert np.array_equal(getattr(stored, name), getattr(computed, name))
     assert stored.mass_kg == computed.mass_kg
+
+
+def test_the_dense_solver_stands_in_when_arpack_fails(monkeypatch):
+    import scipy.sparse.linalg
+    from scipy.sparse.linalg import ArpackNoConvergence
+
+    from barsynth.models.banded import geometry
+
+    p = MODEL.resolve({**MARIMBA, "undercut_depth": 0.3})
+    geometry._kept.cache_clear()
+    sparse = geometry_bar(p)
+
+    def fails(*args, **kwargs):
+        raise ArpackNoConvergence("no convergence", np.zeros(0), np.zeros((0, 0)))
+
+    monkeypatch.setattr(scipy.sparse.linalg, "eigsh", fails)
+    geometry._kept.cache_clear()
+    dense = geometry_bar(p)
+    geometry._kept.cache_clear()
+    assert dense.frequencies_hz == pytest.approx(sparse.frequencies_hz, rel=1e-8)
+    assert np.max(np.abs(dense.shapes - sparse.shapes)) < 1e-8
