@@ -29,10 +29,9 @@ from typing import Any
 import numpy as np
 
 from ...physics.profiles import Profile
-from ..rows import profile_of
-from ..shear import shear_of
+from ..rows import profile_of, shear_of
 
-SOURCES = ("barsynth.models.banded.geometry", "barsynth.models.shear", "barsynth.physics.grid",
+SOURCES = ("barsynth.models.banded.geometry", "barsynth.physics.grid",
            "barsynth.physics.timoshenko_grid", "barsynth.physics.profiles")
 """The code a design comes from (the on-disk cache's key covers it)."""
 

@@ -97,12 +97,12 @@ BANDED_TABLE = ParameterTable(
                   "free-free bar of the material, size and thickness profile below, in the chosen theory: its "
                   "modes and its own mode shapes)",
                   kind=CHOICE, choices=("physics", "ratios", "geometry")),
-        *bar_size_parameters("tuning = physics or geometry: ", A_BAR),
+        *bar_size_parameters("tuning = physics or geometry: ", A_BAR, shear=True),
         Parameter("mode_count", "", 1, MAX_MODES, 4, "tuning = physics or geometry: how many modes", kind=INT,
                   when=A_BAR),
         # tuning = geometry (issue 15): the theory and the thickness profile of a real bar (free-free only:
         # a banded bar rests on its nodes). The resonator tube and the vibraphone's motor go after these.
-        *theory_parameters("tuning = geometry: ", GEOMETRY),
+        *theory_parameters("tuning = geometry: ", GEOMETRY, default="timoshenko"),
         *profile_parameters("tuning = geometry: ", GEOMETRY),
         Parameter("frequency_hz", "Hz", 20.0, 5000.0, 220.0, "tuning = ratios: the fundamental", scale="log",
                   when=RATIOS),
