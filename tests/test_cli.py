@@ -786,7 +786,7 @@ def test_a_parameter_without_effect_gets_one_warning_and_still_renders(tmp_path)
     assert r.stderr == "barsynth: warning: length_m has no effect unless tuning = physics or geometry\n"
     r = run("describe", "banded", "--preset", str(mine), "--set", "mallet_hardness=0.3", "--set", "excitation=bow")
     assert r.stderr == ("barsynth: warning: length_m has no effect unless tuning = physics or geometry\n"
-                        "barsynth: warning: mallet_hardness has no effect unless excitation = strike\n")  # --set: warned
+                        "barsynth: warning: mallet_hardness has no effect unless excitation = strike\n")  # --set warned
 
 
 @pytest.mark.parametrize("model_name,args,warning", [
