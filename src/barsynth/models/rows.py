@@ -92,7 +92,7 @@ def theory_parameters(note: str = "", when: Any = (), default: str = "euler-bern
     needs (acting only with ``theory = timoshenko``); a ``material`` made with ``shear`` sets them.
     ``note`` prefixes each doc, ``when`` (one clause) says when the theory acts at all, ``default``
     is the theory's default."""
-    thick = {**when, **TIMOSHENKO}
+    thick = {**(when or {}), **TIMOSHENKO}
     return [
         Parameter("theory", "", None, None, default,
                   f"{note}the bar's physics: euler-bernoulli (thin: bending only) or timoshenko (thick: shear and "
