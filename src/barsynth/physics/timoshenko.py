@@ -1,0 +1,274 @@
+"""Closed-form frequencies of a uniform thick (Timoshenko) bar, from its characteristic equation.
+
+Sources: S. Timoshenko, Phil. Mag. 41 (1921) (shear and rotary inertia); T. C. Huang, J. Appl.
+Mech. 28 (1961) 579 (the frequency equations for the classical end conditions, both regimes);
+G. R. Cowper, J. Appl. Mech. 33 (1966) 335 (the shear coefficient of a rectangle). Spec 8.2.
+
+With ``ξ = x / L``, ``W = w / L``, ``ψ = θ``, the slenderness ``r² = I / (A L²) = h² / (12 L²)``,
+``s² = r² E / (κ G)`` and the frequency ``b² = ρ A L⁴ ω² / (E I)`` (Huang's notation; ``b = λ²`` of
+Euler–Bernoulli), a harmonic motion obeys ``W'' − ψ' + b² s² W = 0`` and ``s² ψ'' + (W' − ψ) +
+b² r² s² ψ = 0``. A wave ``exp(k ξ)`` needs ``k⁴ + b² (r² + s²) k² − b² (1 − b² r² s²) = 0``: one pair
+``k = ± i β`` is always oscillatory, the other ``k = ± α`` decays (a near field) below the cut-off
+``b_c = 1 / (r s)``, i.e. ``ω_c = sqrt(κ G A / (ρ I))``, and oscillates (``α² < 0``) above it, where
+the second spectrum begins. The four waves and the two end conditions (clamped ``W = ψ = 0``,
+pinned ``W = ψ' = 0``, free ``ψ' = 0`` and shear ``W' − ψ = 0``) give a 4 × 4 matrix ``M(b)`` whose
+determinant vanishes at the modes.
+
+Each pair ``k² = μ`` is written with ``C = cosh(k ξ)`` and ``S = sinh(k ξ) / k`` (``cos`` and
+``sin / q`` when ``μ = −q² < 0``), which are entire in ``μ``, so the matrix is smooth through the
+cut-off (where ``α = 0`` and the naive ``exp(± α ξ)`` pair degenerates): ``(W, ψ) = (C, D S)`` and
+``(μ S / D, C)``, ``D = μ + b² s²``, the shear strain of each written out (``−b² s² S`` and
+``−b² s² C / D``) so a thin bar's tiny shear costs no digits. A large decaying pair is written in
+the bounded basis ``exp(−α ξ)``, ``exp(−α (1 − ξ))`` instead (as :mod:`~barsynth.physics.modes` does
+for Euler–Bernoulli); the change of basis has a positive determinant, so the sign of ``det M`` is
+the same in both. Rows and columns are scaled to unit size (positive factors: signs kept).
+
+Roots are bracketed on a scan that advances each oscillatory wavenumber (``β``, and ``|α|`` above
+the cut-off) by at most π/16 per step, so each step holds at most one root except where two modes
+(first and second spectrum) nearly coincide; such a pair shows as a dip of the smallest singular
+value without a sign change and is resolved on a finer scan. Each root is refined by Brent's method.
+The free–free bar's two rigid-body modes (``b = 0``) are left out, as in
+:func:`~barsynth.physics.bar_frequencies`. A pinned–pinned bar has, besides its flexural modes, a
+mode exactly at the cut-off (a uniform rotation of the sections with no deflection); it is listed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..checks import check_number, check_whole
+from ..errors import ParameterError
+from .boundary import _check_bc
+
+__all__ = ["shear_coefficient", "timoshenko_frequencies"]
+
+#: Largest number of modes one call may ask for.
+MAX_COUNT = 2000
+
+_STEP = math.pi / 16.0  # scan step of each oscillatory wavenumber
+_EXPONENTIAL_ABOVE = 1.0  # a decaying pair with alpha above this uses the bounded exponential basis
+_END_ROWS = {"clamped": (0, 1), "pinned": (0, 2), "free": (2, 3)}  # rows of (W, psi, psi', shear)
+
+
+def shear_coefficient(poisson_ratio: float) -> float:
+    """Shear coefficient ``κ = 10 (1 + ν) / (12 + 11 ν)`` of a rectangular section (Cowper 1966).
+
+    Parameters
+    ----------
+    poisson_ratio : float
+        Poisson's ratio ``ν``, above −1 to 0.5 (dimensionless).
+
+    Returns
+    -------
+    float
+        ``κ``, dimensionless (0.8333 at ``ν = 0``, 0.8509 at ``ν = 0.33``).
+
+    Examples
+    --------
+    >>> round(shear_coefficient(0.33), 4)
+    0.8509
+    """
+    nu = check_number("poisson_ratio", poisson_ratio, "", minimum=-1.0, maximum=0.5, minimum_exclusive=True)
+    return 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu)
+
+
+def _wavenumbers(b: np.ndarray, r2: float, s2: float) -> tuple[np.ndarray, ...]:
+    """``(μ_β, D_β, μ_α, D_α)`` at frequencies ``b``: ``μ = k²`` of each pair, ``D = μ + b² s²``,
+    each without cancellation (``μ_β = −β² < 0``, ``D_β < 0 < D_α``)."""
+    b2 = b * b
+    x = b2 * (r2 - s2)
+    root = np.hypot(x, 2.0 * b)
+    beta2 = 0.5 * (b2 * (r2 + s2) + root)
+    # beta^2 - b^2 s^2 = (root + x) / 2 and alpha^2 + b^2 s^2 = (root - x) / 2, written so neither cancels
+    with np.errstate(divide="ignore", invalid="ignore"):
+        plus = np.where(x >= 0.0, 0.5 * (root + x), 2.0 * b2 / (root - x))
+        minus = np.where(x <= 0.0, 0.5 * (root - x), 2.0 * b2 / (root + x))
+    alpha2 = b2 * (1.0 - b2 * r2 * s2) / beta2
+    return -beta2, -plus, alpha2, minus
+
+
+def _cs_at_one(mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``C(1)`` and ``S(1)`` of a pair with ``k² = μ`` (entire in ``μ``)."""
+    q = np.sqrt(np.abs(mu))
+    c = np.where(mu < 0.0, np.cos(q), np.cosh(q))
+    small = q < 1e-4
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(mu < 0.0, np.sin(q) / q, np.sinh(q) / q)
+    s = np.where(small, 1.0 + mu / 6.0, s)
+    return c, s
+
+
+def _entire_columns(mu: np.ndarray, d: np.ndarray, out: np.ndarray, first: int) -> None:
+    """Columns ``first`` and ``first + 1`` (the solutions ``(C, D S)`` and ``(μ S / D, C)``) of the
+    end values ``out[..., end, quantity, column]``, quantities ``(W, ψ, ψ', shear / (b² s²))``."""
+    c1, s1 = _cs_at_one(mu)
+    one, zero = np.ones_like(mu), np.zeros_like(mu)
+    for end, (c, s) in enumerate(((one, zero), (c1, s1))):
+        out[:, end, :, first] = np.stack([c, d * s, d * c, -s], axis=-1)
+        out[:, end, :, first + 1] = np.stack([mu * s / d, c, mu * s, -c / d], axis=-1)
+
+
+def _matrices(b: np.ndarray, r2: float, s2: float, left: str, right: str) -> np.ndarray:
+    """The scaled 4 × 4 boundary matrices ``M(b)``, shape ``(len(b), 4, 4)``."""
+    mu_b, d_b, mu_a, d_a = _wavenumbers(b, r2, s2)
+    values = np.empty((b.size, 2, 4, 4))
+    _entire_columns(mu_b, d_b, values, 0)
+    _entire_columns(mu_a, d_a, values, 2)
+    big = mu_a > _EXPONENTIAL_ABOVE**2
+    if np.any(big):
+        alpha, d = np.sqrt(mu_a[big]), d_a[big]
+        decay = np.exp(-alpha)
+        for end, (e1, e2) in enumerate(((np.ones_like(decay), decay), (decay, np.ones_like(decay)))):
+            values[big, end, :, 2] = np.stack([e1, -d / alpha * e1, d * e1, e1 / alpha], axis=-1)
+            values[big, end, :, 3] = np.stack([e2, d / alpha * e2, d * e2, -e2 / alpha], axis=-1)
+    m = np.concatenate([values[:, 0, _END_ROWS[left], :], values[:, 1, _END_ROWS[right], :]], axis=1)
+    m /= np.abs(m).max(axis=1, keepdims=True)
+    m /= np.abs(m).max(axis=2, keepdims=True)
+    return m
+
+
+def _b_of_wavenumber(q: np.ndarray, r2: float, s2: float, upper: bool) -> np.ndarray:
+    """The frequencies ``b`` at which an oscillatory wavenumber equals ``q``: the lower (flexural,
+    ``β = q``) or the upper (second spectrum, ``|α| = q``) root of the dispersion relation."""
+    q2 = q * q
+    p = (r2 + s2) * q2 + 1.0
+    disc = np.sqrt(np.maximum(p * p - 4.0 * r2 * s2 * q2 * q2, 0.0))
+    b2 = (p + disc) / (2.0 * r2 * s2) if upper else 2.0 * q2 * q2 / (p + disc)
+    return np.sqrt(b2)
+
+
+def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarray:
+    """The lowest ``count`` roots ``b > 0`` of ``det M(b) = 0``."""
+    from scipy.optimize import brentq, minimize_scalar
+
+    def det(value: float) -> float:
+        return float(np.linalg.det(_matrices(np.array([value]), r2, s2, left, right))[0])
+
+    def smallest(value: float) -> float:
+        return float(np.linalg.svd(_matrices(np.array([value]), r2, s2, left, right), compute_uv=False)[0, -1])
+
+    top = (count + 2) * math.pi
+    while True:
+        q = np.arange(0.25, top / _STEP + 1.0) * _STEP
+        limit = _b_of_wavenumber(np.array([top]), r2, s2, upper=False)[0]
+        grid = [_b_of_wavenumber(q, r2, s2, upper=False)]
+        b_cut = 1.0 / math.sqrt(r2 * s2)
+        if b_cut < limit:
+            upper = _b_of_wavenumber(np.concatenate([[0.0], q]), r2, s2, upper=True)
+            grid.append(upper[upper <= limit])
+        b = np.unique(np.concatenate(grid))
+        m = _matrices(b, r2, s2, left, right)
+        f = np.linalg.det(m)
+        sign = np.sign(f)
+        roots = list(b[sign == 0.0])
+        for i in np.flatnonzero(sign[:-1] * sign[1:] < 0.0):
+            roots.append(brentq(det, b[i], b[i + 1], xtol=1e-300, rtol=1e-15))
+        # a pair of roots inside one step: a dip of the smallest singular value without a sign change
+        sigma = np.linalg.svd(m, compute_uv=False)[:, -1]
+        dips = np.flatnonzero((sigma[1:-1] <= sigma[:-2]) & (sigma[1:-1] <= sigma[2:])) + 1
+        for i in dips:
+            if sign[i - 1] * sign[i] <= 0.0 or sign[i] * sign[i + 1] <= 0.0:
+                continue
+            fine = np.linspace(b[i - 1], b[i + 1], 65)
+            fine_sign = np.sign(np.linalg.det(_matrices(fine, r2, s2, left, right)))
+            changes = np.flatnonzero(fine_sign[:-1] * fine_sign[1:] < 0.0)
+            for j in changes:
+                roots.append(brentq(det, fine[j], fine[j + 1], xtol=1e-300, rtol=1e-15))
+            if changes.size == 0:
+                fine_sigma = np.linalg.svd(_matrices(fine, r2, s2, left, right), compute_uv=False)[:, -1]
+                j = int(np.argmin(fine_sigma))
+                if fine_sigma[j] < 1e-3:
+                    lo, hi = fine[max(j - 1, 0)], fine[min(j + 1, fine.size - 1)]
+                    best = minimize_scalar(smallest, bounds=(lo, hi), method="bounded",
+                                           options={"xatol": 1e-14 * hi})
+                    if best.fun < 1e-10:  # a double root (two modes at one frequency)
+                        roots += [best.x, best.x]
+        roots = np.sort(np.array(roots))
+        if roots.size >= count:
+            return roots[:count]
+        top *= 2.0
+
+
+def timoshenko_frequencies(
+    *,
+    youngs_modulus_pa: float,
+    density_kg_m3: float,
+    shear_modulus_pa: float,
+    shear_coefficient: float,
+    length_m: float,
+    thickness_m: float,
+    bc: str,
+    count: int,
+) -> np.ndarray:
+    """Mode frequencies of a uniform rectangular Timoshenko bar (Hz), from its characteristic equation.
+
+    The width cancels. Damping is not included. As the bar gets thin the frequencies approach
+    :func:`~barsynth.physics.bar_frequencies` (relative difference of order ``(λ_n h / L)²``).
+
+    Parameters
+    ----------
+    youngs_modulus_pa : float
+        Young's modulus ``E`` in Pa, > 0.
+    density_kg_m3 : float
+        Density ``ρ`` in kg/m³, > 0.
+    shear_modulus_pa : float
+        Shear modulus ``G`` in Pa, > 0 (along the grain for wood).
+    shear_coefficient : float
+        Timoshenko's shear coefficient ``κ``, above 0 to 1 (dimensionless; see :func:`shear_coefficient`).
+    length_m : float
+        Length ``L`` in m, > 0.
+    thickness_m : float
+        Thickness ``h`` in m (in the bending direction), above 0 to ``length_m``.
+    bc : str
+        Boundary conditions, one of :data:`~barsynth.physics.BOUNDARY_CONDITIONS` (the first name is
+        the end at ``x = 0``).
+    count : int
+        Number of modes, 1 to :data:`MAX_COUNT`.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64, shape ``(count,)``, in Hz, non-decreasing (rigid-body modes left out).
+
+    Raises
+    ------
+    ParameterError
+        A parameter out of range, or an unknown ``bc``.
+
+    Examples
+    --------
+    >>> f = timoshenko_frequencies(youngs_modulus_pa=20e9, density_kg_m3=1000.0, shear_modulus_pa=1.4e9,
+    ...                            shear_coefficient=5 / 6, length_m=0.4, thickness_m=0.02,
+    ...                            bc="free-free", count=3)
+    >>> (f / f[0]).round(3).tolist()  # Euler–Bernoulli: 1, 2.757, 5.404
+    [1.0, 2.687, 5.079]
+    """
+    positive = {"minimum": 0.0, "minimum_exclusive": True}
+    e = check_number("youngs_modulus_pa", youngs_modulus_pa, "Pa", **positive)
+    rho = check_number("density_kg_m3", density_kg_m3, "kg/m³", **positive)
+    g = check_number("shear_modulus_pa", shear_modulus_pa, "Pa", **positive)
+    kappa = check_number("shear_coefficient", shear_coefficient, "", **positive, maximum=1.0)
+    length = check_number("length_m", length_m, "m", **positive)
+    thickness = check_number("thickness_m", thickness_m, "m", **positive, maximum=length)
+    name = _check_bc(bc)
+    n = check_whole("count", count, "modes", 1, MAX_COUNT, integral_floats=True)
+    ratio = e / (kappa * g)
+    r2 = thickness**2 / (12.0 * length**2)
+    s2 = r2 * ratio
+    if not (math.isfinite(ratio) and ratio > 0.0 and r2 > 0.0 and s2 > 0.0 and r2 * s2 > 0.0):
+        raise ParameterError(
+            f"parameters youngs_modulus_pa = {youngs_modulus_pa!r}, shear_modulus_pa = {shear_modulus_pa!r}, "
+            f"thickness_m = {thickness_m!r}, length_m = {length_m!r} are out of float range; allowed: "
+            "E / (kappa G) and (h / L)^4 E / (kappa G) positive normal floats")
+    left, right = name.split("-")
+    b = _roots(r2, s2, left, right, n)
+    scale = math.sqrt(e / rho) * thickness / (math.sqrt(12.0) * length**2) / (2.0 * math.pi)
+    freqs = b * scale
+    if not np.all(np.isfinite(freqs) & (freqs > 0.0)):
+        raise ParameterError(
+            f"parameters youngs_modulus_pa = {youngs_modulus_pa!r}, density_kg_m3 = {density_kg_m3!r}, "
+            f"length_m = {length_m!r}, thickness_m = {thickness_m!r} give frequencies that are not finite "
+            "positive numbers; allowed: values whose frequencies stay within float range (Hz)")
+    return freqs
