@@ -139,12 +139,58 @@ def _b_of_wavenumber(q: np.ndarray, r2: float, s2: float, upper: bool) -> np.nda
     return np.sqrt(b2)
 
 
+def _refine(lo: np.ndarray, hi: np.ndarray, det, max_iterations: int = 200) -> np.ndarray:
+    """Roots of ``det`` inside the brackets ``[lo, hi]`` (a sign change in each), all at once:
+    the Illinois variant of regula falsi with a bisection step whenever a bracket fails to halve,
+    until each bracket is a few ulps wide."""
+    lo, hi = lo.copy(), hi.copy()
+    f_lo, f_hi = det(lo), det(hi)
+    side = np.zeros(lo.size)
+    for iteration in range(max_iterations):
+        open_ = (hi - lo > 4.0 * np.spacing(hi)) & (f_lo != 0.0) & (f_hi != 0.0)
+        if not open_.any():
+            break
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        bisect = ~((x > lo) & (x < hi)) | (iteration % 4 == 3)
+        x = np.where(bisect, 0.5 * (lo + hi), x)
+        x = np.where(open_, x, lo)
+        f_x = det(x)
+        low = (np.sign(f_x) == np.sign(f_lo)) & open_
+        high = ~low & open_
+        # Illinois: halve the stale end's value when the same end moves twice
+        f_hi = np.where(low & (side == -1), 0.5 * f_hi, f_hi)
+        f_lo = np.where(high & (side == 1), 0.5 * f_lo, f_lo)
+        lo, f_lo = np.where(low, x, lo), np.where(low, f_x, f_lo)
+        hi, f_hi = np.where(high, x, hi), np.where(high, f_x, f_hi)
+        side = np.where(low, -1.0, np.where(high, 1.0, side))
+        side = np.where(bisect, 0.0, side)
+    return np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
+
+
+def _golden_minimum(func, lo: float, hi: float, iterations: int = 80) -> tuple[float, float]:
+    """Location and value of the minimum of a unimodal ``func`` on ``[lo, hi]`` (golden section)."""
+    ratio = 0.5 * (math.sqrt(5.0) - 1.0)
+    a, b = lo, hi
+    c, d = b - ratio * (b - a), a + ratio * (b - a)
+    f_c, f_d = func(c), func(d)
+    for _ in range(iterations):
+        if f_c < f_d:
+            b, d, f_d = d, c, f_c
+            c = b - ratio * (b - a)
+            f_c = func(c)
+        else:
+            a, c, f_c = c, d, f_d
+            d = a + ratio * (b - a)
+            f_d = func(d)
+    return (c, f_c) if f_c < f_d else (d, f_d)
+
+
 def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarray:
     """The lowest ``count`` roots ``b > 0`` of ``det M(b) = 0``."""
-    from scipy.optimize import brentq, minimize_scalar
 
-    def det(value: float) -> float:
-        return float(np.linalg.det(_matrices(np.array([value]), r2, s2, left, right))[0])
+    def det(values: np.ndarray) -> np.ndarray:
+        return np.linalg.det(_matrices(values, r2, s2, left, right))
 
     def smallest(value: float) -> float:
         return float(np.linalg.svd(_matrices(np.array([value]), r2, s2, left, right), compute_uv=False)[0, -1])
@@ -160,34 +206,33 @@ def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarra
             grid.append(upper[upper <= limit])
         b = np.unique(np.concatenate(grid))
         m = _matrices(b, r2, s2, left, right)
-        f = np.linalg.det(m)
-        sign = np.sign(f)
-        roots = list(b[sign == 0.0])
-        for i in np.flatnonzero(sign[:-1] * sign[1:] < 0.0):
-            roots.append(brentq(det, b[i], b[i + 1], xtol=1e-300, rtol=1e-15))
+        sign = np.sign(np.linalg.det(m))
+        roots = [b[sign == 0.0]]
+        lo, hi = [b[:-1][sign[:-1] * sign[1:] < 0.0]], [b[1:][sign[:-1] * sign[1:] < 0.0]]
         # a pair of roots inside one step: a dip of the smallest singular value without a sign change
         sigma = np.linalg.svd(m, compute_uv=False)[:, -1]
-        dips = np.flatnonzero((sigma[1:-1] <= sigma[:-2]) & (sigma[1:-1] <= sigma[2:])) + 1
-        for i in dips:
-            if sign[i - 1] * sign[i] <= 0.0 or sign[i] * sign[i + 1] <= 0.0:
-                continue
-            fine = np.linspace(b[i - 1], b[i + 1], 65)
-            fine_sign = np.sign(np.linalg.det(_matrices(fine, r2, s2, left, right)))
-            changes = np.flatnonzero(fine_sign[:-1] * fine_sign[1:] < 0.0)
-            for j in changes:
-                roots.append(brentq(det, fine[j], fine[j + 1], xtol=1e-300, rtol=1e-15))
-            if changes.size == 0:
-                fine_sigma = np.linalg.svd(_matrices(fine, r2, s2, left, right), compute_uv=False)[:, -1]
-                j = int(np.argmin(fine_sigma))
-                if fine_sigma[j] < 1e-3:
-                    lo, hi = fine[max(j - 1, 0)], fine[min(j + 1, fine.size - 1)]
-                    best = minimize_scalar(smallest, bounds=(lo, hi), method="bounded",
-                                           options={"xatol": 1e-14 * hi})
-                    if best.fun < 1e-10:  # a double root (two modes at one frequency)
-                        roots += [best.x, best.x]
-        roots = np.sort(np.array(roots))
-        if roots.size >= count:
-            return roots[:count]
+        dips = np.flatnonzero((sigma[1:-1] <= sigma[:-2]) & (sigma[1:-1] <= sigma[2:])
+                              & (sign[:-2] == sign[1:-1]) & (sign[1:-1] == sign[2:])) + 1
+        if dips.size:
+            fine = np.linspace(b[dips - 1], b[dips + 1], 65, axis=1)
+            fine_m = _matrices(fine.ravel(), r2, s2, left, right)
+            fine_sign = np.sign(np.linalg.det(fine_m)).reshape(fine.shape)
+            fine_sigma = np.linalg.svd(fine_m, compute_uv=False)[:, -1].reshape(fine.shape)
+            change = fine_sign[:, :-1] * fine_sign[:, 1:] < 0.0
+            lo.append(fine[:, :-1][change])
+            hi.append(fine[:, 1:][change])
+            for k in np.flatnonzero(~change.any(axis=1)):
+                j = int(np.argmin(fine_sigma[k]))
+                if fine_sigma[k, j] < 1e-3:
+                    where, value = _golden_minimum(smallest, fine[k, max(j - 1, 0)], fine[k, min(j + 1, 64)])
+                    if value < 1e-10:  # a double root (two modes at one frequency)
+                        roots.append(np.array([where, where]))
+        lo, hi = np.concatenate(lo), np.concatenate(hi)
+        if lo.size:
+            roots.append(_refine(lo, hi, det))
+        found = np.sort(np.concatenate(roots))
+        if found.size >= count:
+            return found[:count]
         top *= 2.0
 
 
