@@ -49,7 +49,9 @@ MAX_COUNT = 2000
 
 _STEP = math.pi / 16.0  # scan step of each oscillatory wavenumber
 _EXPONENTIAL_ABOVE = 1.0  # a decaying pair with alpha above this uses the bounded exponential basis
-_END_ROWS = {"clamped": (0, 1), "pinned": (0, 2), "free": (2, 3)}  # rows of (W, psi, psi', shear)
+# rows of (W, psi, psi', shear) that vanish at an end; "guided" is the middle of a symmetric mode
+_END_ROWS = {"clamped": (0, 1), "pinned": (0, 2), "free": (2, 3), "guided": (1, 3)}
+_SMALL = 0.1  # a step whose ends have a smallest singular value below this is scanned finely
 
 
 def shear_coefficient(poisson_ratio: float) -> float:
@@ -123,9 +125,12 @@ def _matrices(b: np.ndarray, r2: float, s2: float, left: str, right: str) -> np.
         for end, (e1, e2) in enumerate(((np.ones_like(decay), decay), (decay, np.ones_like(decay)))):
             values[big, end, :, 2] = np.stack([e1, -d / alpha * e1, d * e1, e1 / alpha], axis=-1)
             values[big, end, :, 3] = np.stack([e2, d / alpha * e2, d * e2, -e2 / alpha], axis=-1)
+    # each column (a solution) scaled by its largest end value, of all four quantities at both ends:
+    # that never vanishes (a solution with all of them zero at an end is zero), where its largest entry
+    # in the rows kept does when the solution alone meets one end's conditions (a root)
+    values /= np.abs(values).max(axis=(1, 2))[:, None, None, :]
     m = np.concatenate([values[:, 0, _END_ROWS[left], :], values[:, 1, _END_ROWS[right], :]], axis=1)
-    m /= np.abs(m).max(axis=1, keepdims=True)
-    m /= np.abs(m).max(axis=2, keepdims=True)
+    m /= np.abs(m).max(axis=2, keepdims=True)  # rows: no row vanishes (the columns are a basis)
     return m
 
 
@@ -207,33 +212,53 @@ def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarra
         b = np.unique(np.concatenate(grid))
         m = _matrices(b, r2, s2, left, right)
         sign = np.sign(np.linalg.det(m))
-        roots = [b[sign == 0.0]]
-        lo, hi = [b[:-1][sign[:-1] * sign[1:] < 0.0]], [b[1:][sign[:-1] * sign[1:] < 0.0]]
-        # a pair of roots inside one step: a dip of the smallest singular value without a sign change
         sigma = np.linalg.svd(m, compute_uv=False)[:, -1]
-        dips = np.flatnonzero((sigma[1:-1] <= sigma[:-2]) & (sigma[1:-1] <= sigma[2:])
-                              & (sign[:-2] == sign[1:-1]) & (sign[1:-1] == sign[2:])) + 1
-        if dips.size:
-            fine = np.linspace(b[dips - 1], b[dips + 1], 65, axis=1)
+        roots, doubles = [b[sign == 0.0]], []
+        # a step near a root, where two roots may hide (a sign change is lost with an even number),
+        # is scanned finely; the other steps hold at most one root
+        near = np.minimum(sigma[:-1], sigma[1:]) < _SMALL
+        change = (sign[:-1] * sign[1:] < 0.0) & ~near
+        lo, hi = [b[:-1][change]], [b[1:][change]]
+        if near.any():
+            fine = np.linspace(b[:-1][near], b[1:][near], 33, axis=1)
             fine_m = _matrices(fine.ravel(), r2, s2, left, right)
             fine_sign = np.sign(np.linalg.det(fine_m)).reshape(fine.shape)
+            fine_change = fine_sign[:, :-1] * fine_sign[:, 1:] < 0.0
+            lo.append(fine[:, :-1][fine_change])
+            hi.append(fine[:, 1:][fine_change])
+            roots.append(fine[:, 1:-1][fine_sign[:, 1:-1] == 0.0])
             fine_sigma = np.linalg.svd(fine_m, compute_uv=False)[:, -1].reshape(fine.shape)
-            change = fine_sign[:, :-1] * fine_sign[:, 1:] < 0.0
-            lo.append(fine[:, :-1][change])
-            hi.append(fine[:, 1:][change])
-            for k in np.flatnonzero(~change.any(axis=1)):
+            for k in np.flatnonzero(fine_sigma.min(axis=1) < 1e-3):  # two roots closer than a fine step?
                 j = int(np.argmin(fine_sigma[k]))
-                if fine_sigma[k, j] < 1e-3:
-                    where, value = _golden_minimum(smallest, fine[k, max(j - 1, 0)], fine[k, min(j + 1, 64)])
-                    if value < 1e-10:  # a double root (two modes at one frequency)
-                        roots.append(np.array([where, where]))
+                # a sign change or an exact zero there is found already; a right end is the next step's left
+                if j == 32 or fine_sign[k, j] == 0.0 or fine_change[k, max(j - 1, 0):j + 1].any():
+                    continue
+                a, b_ = fine[k, max(j - 1, 0)], fine[k, min(j + 1, 32)]
+                where, value = _golden_minimum(smallest, a, b_)
+                if value < 1e-10:  # a double root (two modes at one frequency) unless a sign change found it
+                    doubles.append((where, a, b_))
         lo, hi = np.concatenate(lo), np.concatenate(hi)
         if lo.size:
             roots.append(_refine(lo, hi, det))
+        simple = np.concatenate(roots)
+        for where, a, b_ in doubles:
+            if not np.any(np.abs(simple - where) <= b_ - a):
+                roots.append(np.array([where, where]))
         found = np.sort(np.concatenate(roots))
         if found.size >= count:
             return found[:count]
         top *= 2.0
+
+
+def _bar_roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarray:
+    """The lowest ``count`` roots ``b`` of a bar; a symmetric bar's as those of its half with the
+    middle guided (symmetric modes) and pinned (antisymmetric ones), so that a symmetric and an
+    antisymmetric mode that nearly coincide are never looked for in one determinant."""
+    if left != right:
+        return _roots(r2, s2, left, right, count)
+    # the half is half as long: r^2 and s^2 four times, b a quarter
+    halves = [_roots(4.0 * r2, 4.0 * s2, left, middle, count) for middle in ("guided", "pinned")]
+    return 4.0 * np.sort(np.concatenate(halves))[:count]
 
 
 def timoshenko_frequencies(
@@ -308,7 +333,7 @@ def timoshenko_frequencies(
             f"thickness_m = {thickness_m!r}, length_m = {length_m!r} are out of float range; allowed: "
             "E / (kappa G) and (h / L)^4 E / (kappa G) positive normal floats")
     left, right = name.split("-")
-    b = _roots(r2, s2, left, right, n)
+    b = _bar_roots(r2, s2, left, right, n)
     scale = math.sqrt(e / rho) * thickness / (math.sqrt(12.0) * length**2) / (2.0 * math.pi)
     freqs = b * scale
     if not np.all(np.isfinite(freqs) & (freqs > 0.0)):
