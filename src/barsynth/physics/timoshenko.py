@@ -173,7 +173,7 @@ def _refine(lo: np.ndarray, hi: np.ndarray, det, max_iterations: int = 200) -> n
     return np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
 
 
-def _golden_minimum(func, lo: float, hi: float, iterations: int = 80) -> tuple[float, float]:
+def _golden_minimum(func, lo: float, hi: float, iterations: int = 64) -> tuple[float, float]:
     """Location and value of the minimum of a unimodal ``func`` on ``[lo, hi]`` (golden section)."""
     ratio = 0.5 * (math.sqrt(5.0) - 1.0)
     a, b = lo, hi
@@ -228,10 +228,11 @@ def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarra
             hi.append(fine[:, 1:][fine_change])
             roots.append(fine[:, 1:-1][fine_sign[:, 1:-1] == 0.0])
             fine_sigma = np.linalg.svd(fine_m, compute_uv=False)[:, -1].reshape(fine.shape)
-            for k in np.flatnonzero(fine_sigma.min(axis=1) < 1e-3):  # two roots closer than a fine step?
+            for k in np.flatnonzero(fine_sigma.min(axis=1) < 1e-4):  # two roots closer than a fine step?
                 j = int(np.argmin(fine_sigma[k]))
-                # a sign change or an exact zero there is found already; a right end is the next step's left
-                if j == 32 or fine_sign[k, j] == 0.0 or fine_change[k, max(j - 1, 0):j + 1].any():
+                # a sign change or an exact zero there is found already; a left end is the step before's right
+                # (and the scan's first point is next to the free bar's rigid modes, a double root at b = 0)
+                if j == 0 or fine_sign[k, j] == 0.0 or fine_change[k, j - 1:j + 1].any():
                     continue
                 a, b_ = fine[k, max(j - 1, 0)], fine[k, min(j + 1, 32)]
                 where, value = _golden_minimum(smallest, a, b_)
