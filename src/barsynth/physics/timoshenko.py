@@ -197,9 +197,6 @@ def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarra
     def det(values: np.ndarray) -> np.ndarray:
         return np.linalg.det(_matrices(values, r2, s2, left, right))
 
-    def smallest(value: float) -> float:
-        return float(np.linalg.svd(_matrices(np.array([value]), r2, s2, left, right), compute_uv=False)[0, -1])
-
     top = (count + 2) * math.pi
     while True:
         q = np.arange(0.25, top / _STEP + 1.0) * _STEP
@@ -234,9 +231,13 @@ def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarra
                 # (and the scan's first point is next to the free bar's rigid modes, a double root at b = 0)
                 if j == 0 or fine_sign[k, j] == 0.0 or fine_change[k, j - 1:j + 1].any():
                     continue
-                a, b_ = fine[k, max(j - 1, 0)], fine[k, min(j + 1, 32)]
-                where, value = _golden_minimum(smallest, a, b_)
-                if value < 1e-10:  # a double root (two modes at one frequency) unless a sign change found it
+                a, b_ = fine[k, j - 1], fine[k, min(j + 1, 32)]
+                side = fine_sign[k, j]
+                where, value = _golden_minimum(lambda x: side * float(det(np.array([x]))[0]), a, b_)
+                if value < 0.0:  # two roots inside one fine step
+                    lo.append(np.array([a, where]))
+                    hi.append(np.array([where, b_]))
+                elif value < 1e-10:  # a double root (two modes at one frequency) unless a sign change found it
                     doubles.append((where, a, b_))
         lo, hi = np.concatenate(lo), np.concatenate(hi)
         if lo.size:
