@@ -47,11 +47,10 @@ __all__ = ["shear_coefficient", "timoshenko_frequencies"]
 #: Largest number of modes one call may ask for.
 MAX_COUNT = 2000
 
-_STEP = math.pi / 16.0  # scan step of each oscillatory wavenumber
+_STEP = math.pi / 8.0  # scan step of each oscillatory wavenumber
 _EXPONENTIAL_ABOVE = 1.0  # a decaying pair with alpha above this uses the bounded exponential basis
 # rows of (W, psi, psi', shear) that vanish at an end; "guided" is the middle of a symmetric mode
 _END_ROWS = {"clamped": (0, 1), "pinned": (0, 2), "free": (2, 3), "guided": (1, 3)}
-_SMALL = 0.1  # a step whose ends have a smallest singular value below this is scanned finely
 
 
 def shear_coefficient(poisson_ratio: float) -> float:
@@ -104,32 +103,35 @@ def _cs_at_one(mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _entire_columns(mu: np.ndarray, d: np.ndarray, out: np.ndarray, first: int) -> None:
     """Columns ``first`` and ``first + 1`` (the solutions ``(C, D S)`` and ``(μ S / D, C)``) of the
-    end values ``out[..., end, quantity, column]``, quantities ``(W, ψ, ψ', shear / (b² s²))``."""
+    end values ``out[end, quantity, column, :]``, quantities ``(W, ψ, ψ', shear / (b² s²))``."""
     c1, s1 = _cs_at_one(mu)
-    one, zero = np.ones_like(mu), np.zeros_like(mu)
-    for end, (c, s) in enumerate(((one, zero), (c1, s1))):
-        out[:, end, :, first] = np.stack([c, d * s, d * c, -s], axis=-1)
-        out[:, end, :, first + 1] = np.stack([mu * s / d, c, mu * s, -c / d], axis=-1)
+    a, b = first, first + 1
+    out[0, 0, a], out[0, 1, a], out[0, 2, a], out[0, 3, a] = 1.0, 0.0, d, 0.0  # at ξ = 0: C = 1, S = 0
+    out[0, 0, b], out[0, 1, b], out[0, 2, b], out[0, 3, b] = 0.0, 1.0, 0.0, -1.0 / d
+    out[1, 0, a], out[1, 1, a], out[1, 2, a], out[1, 3, a] = c1, d * s1, d * c1, -s1
+    out[1, 0, b], out[1, 1, b], out[1, 2, b], out[1, 3, b] = mu * s1 / d, c1, mu * s1, -c1 / d
 
 
 def _matrices(b: np.ndarray, r2: float, s2: float, left: str, right: str) -> np.ndarray:
     """The scaled 4 × 4 boundary matrices ``M(b)``, shape ``(len(b), 4, 4)``."""
     mu_b, d_b, mu_a, d_a = _wavenumbers(b, r2, s2)
-    values = np.empty((b.size, 2, 4, 4))
+    values = np.empty((2, 4, 4, b.size))  # end, quantity, column, frequency
     _entire_columns(mu_b, d_b, values, 0)
     _entire_columns(mu_a, d_a, values, 2)
     big = mu_a > _EXPONENTIAL_ABOVE**2
     if np.any(big):
         alpha, d = np.sqrt(mu_a[big]), d_a[big]
         decay = np.exp(-alpha)
-        for end, (e1, e2) in enumerate(((np.ones_like(decay), decay), (decay, np.ones_like(decay)))):
-            values[big, end, :, 2] = np.stack([e1, -d / alpha * e1, d * e1, e1 / alpha], axis=-1)
-            values[big, end, :, 3] = np.stack([e2, d / alpha * e2, d * e2, -e2 / alpha], axis=-1)
+        for end, (e1, e2) in enumerate(((1.0, decay), (decay, 1.0))):
+            for quantity, (v1, v2) in enumerate(((e1, e2), (-d / alpha * e1, d / alpha * e2), (d * e1, d * e2),
+                                                 (e1 / alpha, -e2 / alpha))):
+                values[end, quantity, 2, big] = v1
+                values[end, quantity, 3, big] = v2
     # each column (a solution) scaled by its largest end value, of all four quantities at both ends:
     # that never vanishes (a solution with all of them zero at an end is zero), where its largest entry
     # in the rows kept does when the solution alone meets one end's conditions (a root)
-    values /= np.abs(values).max(axis=(1, 2))[:, None, None, :]
-    m = np.concatenate([values[:, 0, _END_ROWS[left], :], values[:, 1, _END_ROWS[right], :]], axis=1)
+    values /= np.abs(values).max(axis=(0, 1))
+    m = np.concatenate([values[0, _END_ROWS[left]], values[1, _END_ROWS[right]]]).transpose(2, 0, 1)
     m /= np.abs(m).max(axis=2, keepdims=True)  # rows: no row vanishes (the columns are a basis)
     return m
 
@@ -173,22 +175,26 @@ def _refine(lo: np.ndarray, hi: np.ndarray, det, max_iterations: int = 200) -> n
     return np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
 
 
-def _golden_minimum(func, lo: float, hi: float, iterations: int = 64) -> tuple[float, float]:
-    """Location and value of the minimum of a unimodal ``func`` on ``[lo, hi]`` (golden section)."""
+def _golden_minima(func, lo: np.ndarray, hi: np.ndarray, iterations: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    """Locations and values of the minima of ``func`` on the intervals ``[lo, hi]``, all at once
+    (golden-section search, each interval shrunk ``0.618**iterations`` times)."""
     ratio = 0.5 * (math.sqrt(5.0) - 1.0)
-    a, b = lo, hi
+    a, b = lo.copy(), hi.copy()
     c, d = b - ratio * (b - a), a + ratio * (b - a)
     f_c, f_d = func(c), func(d)
     for _ in range(iterations):
-        if f_c < f_d:
-            b, d, f_d = d, c, f_c
-            c = b - ratio * (b - a)
-            f_c = func(c)
-        else:
-            a, c, f_c = c, d, f_d
-            d = a + ratio * (b - a)
-            f_d = func(d)
-    return (c, f_c) if f_c < f_d else (d, f_d)
+        left = f_c < f_d  # the minimum is in [a, d]
+        b = np.where(left, d, b)
+        a = np.where(left, a, c)
+        c_new = np.where(left, b - ratio * (b - a), d)
+        d_new = np.where(left, c, a + ratio * (b - a))
+        f_known = np.where(left, f_c, f_d)
+        x = np.where(left, c_new, d_new)
+        f_x = func(x)
+        f_c, f_d = np.where(left, f_x, f_known), np.where(left, f_known, f_x)
+        c, d = c_new, d_new
+    first = f_c < f_d
+    return np.where(first, c, d), np.where(first, f_c, f_d)
 
 
 def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarray:
@@ -207,45 +213,28 @@ def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarra
             upper = _b_of_wavenumber(np.concatenate([[0.0], q]), r2, s2, upper=True)
             grid.append(upper[upper <= limit])
         b = np.unique(np.concatenate(grid))
-        m = _matrices(b, r2, s2, left, right)
-        sign = np.sign(np.linalg.det(m))
-        sigma = np.linalg.svd(m, compute_uv=False)[:, -1]
-        roots, doubles = [b[sign == 0.0]], []
-        # a step near a root, where two roots may hide (a sign change is lost with an even number),
-        # is scanned finely; the other steps hold at most one root
-        near = np.minimum(sigma[:-1], sigma[1:]) < _SMALL
-        change = (sign[:-1] * sign[1:] < 0.0) & ~near
+        f = det(b)
+        sign = np.sign(f)
+        roots = [b[sign == 0.0]]
+        change = sign[:-1] * sign[1:] < 0.0
         lo, hi = [b[:-1][change]], [b[1:][change]]
-        if near.any():
-            fine = np.linspace(b[:-1][near], b[1:][near], 33, axis=1)
-            fine_m = _matrices(fine.ravel(), r2, s2, left, right)
-            fine_sign = np.sign(np.linalg.det(fine_m)).reshape(fine.shape)
-            fine_change = fine_sign[:, :-1] * fine_sign[:, 1:] < 0.0
-            lo.append(fine[:, :-1][fine_change])
-            hi.append(fine[:, 1:][fine_change])
-            roots.append(fine[:, 1:-1][fine_sign[:, 1:-1] == 0.0])
-            fine_sigma = np.linalg.svd(fine_m, compute_uv=False)[:, -1].reshape(fine.shape)
-            for k in np.flatnonzero(fine_sigma.min(axis=1) < 1e-4):  # two roots closer than a fine step?
-                j = int(np.argmin(fine_sigma[k]))
-                # a sign change or an exact zero there is found already; a left end is the step before's right
-                # (and the scan's first point is next to the free bar's rigid modes, a double root at b = 0)
-                if j == 0 or fine_sign[k, j] == 0.0 or fine_change[k, j - 1:j + 1].any():
-                    continue
-                a, b_ = fine[k, j - 1], fine[k, min(j + 1, 32)]
-                side = fine_sign[k, j]
-                where, value = _golden_minimum(lambda x: side * float(det(np.array([x]))[0]), a, b_)
-                if value < 0.0:  # two roots inside one fine step
-                    lo.append(np.array([a, where]))
-                    hi.append(np.array([where, b_]))
-                elif value < 1e-10:  # a double root (two modes at one frequency) unless a sign change found it
-                    doubles.append((where, a, b_))
+        # each family of waves has at most one root in a step, so a step holds at most two; two show
+        # no sign change but a dip of the determinant through zero between its ends
+        same = np.flatnonzero(sign[:-1] * sign[1:] > 0.0)
+        same = same[same > 0]  # not the first step, next to the free bar's rigid modes (a double root at b = 0)
+        if same.size:
+            side = sign[same]
+            where, value = _golden_minima(lambda x: side * det(x), b[same], b[same + 1])
+            dip = value < 0.0
+            lo += [b[same][dip], where[dip]]
+            hi += [where[dip], b[same + 1][dip]]
+            width = b[same + 1] - b[same]
+            inside = (where - b[same] > 1e-6 * width) & (b[same + 1] - where > 1e-6 * width)  # not an end's root
+            double = (value >= 0.0) & (value < 1e-12) & inside  # two modes at one frequency
+            roots += [where[double], where[double]]
         lo, hi = np.concatenate(lo), np.concatenate(hi)
         if lo.size:
             roots.append(_refine(lo, hi, det))
-        simple = np.concatenate(roots)
-        for where, a, b_ in doubles:
-            if not np.any(np.abs(simple - where) <= b_ - a):
-                roots.append(np.array([where, where]))
         found = np.sort(np.concatenate(roots))
         if found.size >= count:
             return found[:count]
