@@ -214,6 +214,12 @@ def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarra
             grid.append(upper[upper <= limit])
         b = np.unique(np.concatenate(grid))
         f = det(b)
+        for _ in range(4):  # a point exactly on a root (the pinned bar's cut-off mode) moves off it a little,
+            zero = f == 0.0  # so the steps on both sides keep their signs
+            if not zero.any():
+                break
+            b[zero] *= 1.0 - 1e-9
+            f[zero] = det(b[zero])
         sign = np.sign(f)
         roots = [b[sign == 0.0]]
         change = sign[:-1] * sign[1:] < 0.0
