@@ -21,13 +21,18 @@ cut-off (where ``α = 0`` and the naive ``exp(± α ξ)`` pair degenerates): ``(
 ``−b² s² C / D``) so a thin bar's tiny shear costs no digits. A large decaying pair is written in
 the bounded basis ``exp(−α ξ)``, ``exp(−α (1 − ξ))`` instead (as :mod:`~barsynth.physics.modes` does
 for Euler–Bernoulli); the change of basis has a positive determinant, so the sign of ``det M`` is
-the same in both. Rows and columns are scaled to unit size (positive factors: signs kept).
+the same in both. Each column is scaled by its largest end value (of all four quantities at both
+ends, which never all vanish) and each row by its largest entry: positive factors, signs kept.
 
-Roots are bracketed on a scan that advances each oscillatory wavenumber (``β``, and ``|α|`` above
-the cut-off) by at most π/16 per step, so each step holds at most one root except where two modes
-(first and second spectrum) nearly coincide; such a pair shows as a dip of the smallest singular
-value without a sign change and is resolved on a finer scan. Each root is refined by Brent's method.
-The free–free bar's two rigid-body modes (``b = 0``) are left out, as in
+The roots are bracketed on a scan that advances each oscillatory wavenumber (``β``, and ``|α|``
+above the cut-off) by at most π/8 per step. Each family of waves (its roots lie about π apart in
+its wavenumber) then has at most one root in a step, so a step holds at most two: one shows as a sign change, two (a first- and a second-spectrum
+mode that nearly coincide) as a dip of the signed determinant below zero inside the step, found by
+golden-section search; a dip that just touches zero is a double root. Roots are refined by the
+Illinois variant of regula falsi, all at once. A symmetric bar (both ends alike) is solved as its
+half with the middle guided (``ψ = 0``, no shear: the symmetric modes) and pinned (the
+antisymmetric ones), so a symmetric and an antisymmetric mode at one frequency never meet in one
+determinant. The free–free bar's two rigid-body modes (``b = 0``) are left out, as in
 :func:`~barsynth.physics.bar_frequencies`. A pinned–pinned bar has, besides its flexural modes, a
 mode exactly at the cut-off (a uniform rotation of the sections with no deflection); it is listed.
 """
@@ -310,7 +315,7 @@ def timoshenko_frequencies(
     ...                            shear_coefficient=5 / 6, length_m=0.4, thickness_m=0.02,
     ...                            bc="free-free", count=3)
     >>> (f / f[0]).round(3).tolist()  # Euler–Bernoulli: 1, 2.757, 5.404
-    [1.0, 2.687, 5.079]
+    [1.0, 2.599, 4.714]
     """
     positive = {"minimum": 0.0, "minimum_exclusive": True}
     e = check_number("youngs_modulus_pa", youngs_modulus_pa, "Pa", **positive)
