@@ -89,3 +89,12 @@ def test_timoshenko_grid_matches_finite_elements(profile, bc):
     keep = ("youngs_modulus_pa", "density_kg_m3", "length_m", "thickness_m", "bc", "count", "profile")
     thin = euler_bernoulli_fem(**{k: bar[k] for k in keep})
     assert np.abs(thin / oracle - 1.0).max() > 0.05
+
+
+def test_a_free_bar_with_a_symmetric_and_an_antisymmetric_mode_0_1_percent_apart():
+    # E / (kappa G) = 3.06, h / L = 0.112: modes 15 and 16 (above the cut-off) are 0.08 % apart
+    bar = dict(youngs_modulus_pa=2.6e9 / 0.85, density_kg_m3=1000.0, shear_modulus_pa=1e9, shear_coefficient=1.0,
+               length_m=1.0, thickness_m=0.1118544589701035, bc="free-free", count=18)
+    exact, oracle = timoshenko_frequencies(**bar), timoshenko_fem(**bar)
+    assert exact[15] / exact[14] - 1.0 < 1e-3
+    assert np.abs(exact / oracle - 1.0).max() < 1e-8

@@ -122,3 +122,16 @@ def test_bad_poisson_ratio_names_the_parameter():
     for value in (-1.0, 0.6, "x"):
         with pytest.raises(ParameterError, match="parameter poisson_ratio = "):
             shear_coefficient(value)
+
+
+@pytest.mark.parametrize(
+    "ratio, slenderness",
+    [(17.0, 0.1890694716298513),  # modes 6 and 7: 2915.446 and 2916.012 Hz, a first- and a second-spectrum mode
+     (13.588171936972937, 0.5598953088844966),  # a mode 2 % below the cut-off mode
+     (3.4374025275080706, 0.32541316439557244)],  # two modes 0.1 % apart, inside one scan step
+)
+def test_nearly_coinciding_modes_are_both_found(ratio, slenderness):
+    bar = dict(youngs_modulus_pa=ratio * 1e9, density_kg_m3=1000.0, shear_modulus_pa=1e9, shear_coefficient=1.0,
+               length_m=1.0, thickness_m=slenderness)
+    found = timoshenko_frequencies(bc="pinned-pinned", count=20, **bar)
+    np.testing.assert_allclose(found, simply_supported_hz(20, **bar), rtol=1e-10)
