@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from functools import cache
+from itertools import pairwise
 
 import numpy as np
 from scipy.sparse import diags
@@ -25,6 +26,7 @@ from skfem import Basis, BilinearForm, ElementLineHermite, ElementLinePp, MeshLi
 from barsynth.physics.profiles import Profile
 
 RIGID = {"free-free": 2}
+UNIFORM = Profile()
 
 
 def _nodes(profile: Profile, elements: int) -> np.ndarray:
@@ -34,8 +36,8 @@ def _nodes(profile: Profile, elements: int) -> np.ndarray:
         breaks += [0.5 - 0.5 * profile.width, 0.5 + 0.5 * profile.width]
     breaks = np.unique(breaks)
     parts = []
-    for a, b in zip(breaks[:-1], breaks[1:]):
-        cells = max(2, int(round(elements * (b - a))))
+    for a, b in pairwise(breaks):
+        cells = max(2, round(elements * (b - a)))
         parts.append(np.linspace(a, b, cells + 1)[:-1])
     return np.append(np.concatenate(parts), 1.0)
 
@@ -65,7 +67,7 @@ def _solve(stiffness, mass, fixed: np.ndarray, count: int, skip: int, shift: flo
 
 @cache
 def euler_bernoulli_fem(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: float, thickness_m: float,
-                        bc: str, count: int, profile: Profile = Profile(), elements: int = 64,
+                        bc: str, count: int, profile: Profile = UNIFORM, elements: int = 64,
                         extrapolate: bool = True) -> np.ndarray:
     """Mode frequencies (Hz) of an Euler–Bernoulli bar of thickness ``thickness_m × profile(x)``."""
     if extrapolate:
@@ -97,7 +99,7 @@ def euler_bernoulli_fem(*, youngs_modulus_pa: float, density_kg_m3: float, lengt
 @cache
 def timoshenko_fem(*, youngs_modulus_pa: float, density_kg_m3: float, shear_modulus_pa: float,
                    shear_coefficient: float, length_m: float, thickness_m: float, bc: str, count: int,
-                   profile: Profile = Profile(), elements: int = 48, degree: int = 4) -> np.ndarray:
+                   profile: Profile = UNIFORM, elements: int = 48, degree: int = 4) -> np.ndarray:
     """Mode frequencies (Hz) of a Timoshenko bar of thickness ``thickness_m × profile(x)``: ``w`` of
     degree ``degree + 1``, ``θ`` of degree ``degree`` on about ``elements`` cells."""
     mesh = MeshLine(_nodes(profile, elements) * length_m)

@@ -4,12 +4,17 @@ the two-field Timoshenko grid, for every pair of ends, uniform and undercut."""
 
 import numpy as np
 import pytest
+from fem_oracle import euler_bernoulli_fem, timoshenko_fem
 
-from barsynth.physics import BOUNDARY_CONDITIONS, bar_frequencies, shear_coefficient, timoshenko_frequencies
+from barsynth.physics import (
+    BOUNDARY_CONDITIONS,
+    bar_frequencies,
+    shear_coefficient,
+    timoshenko_frequencies,
+)
 from barsynth.physics.grid import grid_modes
 from barsynth.physics.profiles import Profile
 from barsynth.physics.timoshenko_grid import timoshenko_grid_modes
-from fem_oracle import euler_bernoulli_fem, timoshenko_fem
 
 ROSEWOOD = dict(youngs_modulus_pa=20e9, density_kg_m3=1000.0, shear_modulus_pa=1.4e9)
 ALUMINIUM = dict(youngs_modulus_pa=69e9, density_kg_m3=2700.0, shear_modulus_pa=26e9)

@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from barsynth.errors import ParameterError
-from barsynth.physics import BOUNDARY_CONDITIONS, bar_frequencies, lambdas, shear_coefficient, timoshenko_frequencies
+from barsynth.physics import (
+    BOUNDARY_CONDITIONS,
+    bar_frequencies,
+    lambdas,
+    shear_coefficient,
+    timoshenko_frequencies,
+)
 
 ROSEWOOD = dict(youngs_modulus_pa=20e9, density_kg_m3=1000.0, shear_modulus_pa=1.4e9, shear_coefficient=5 / 6)
 ALUMINIUM = dict(youngs_modulus_pa=69e9, density_kg_m3=2700.0, shear_modulus_pa=26e9, shear_coefficient=0.85)

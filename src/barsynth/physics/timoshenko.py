@@ -235,7 +235,7 @@ def _roots(r2: float, s2: float, left: str, right: str, count: int) -> np.ndarra
         same = same[same > 0]  # not the first step, next to the free bar's rigid modes (a double root at b = 0)
         if same.size:
             side = sign[same]
-            where, value = _golden_minima(lambda x: side * det(x), b[same], b[same + 1])
+            where, value = _golden_minima(lambda x, side=side: side * det(x), b[same], b[same + 1])
             dip = value < 0.0
             lo += [b[same][dip], where[dip]]
             hi += [where[dip], b[same + 1][dip]]
