@@ -98,10 +98,11 @@ def _wavenumbers(b: np.ndarray, r2: float, s2: float) -> tuple[np.ndarray, ...]:
 def _cs_at_one(mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``C(1)`` and ``S(1)`` of a pair with ``k² = μ`` (entire in ``μ``)."""
     q = np.sqrt(np.abs(mu))
-    c = np.where(mu < 0.0, np.cos(q), np.cosh(q))
+    h = np.minimum(q, 1.0)  # the hyperbolic form serves only alpha <= 1 (larger ones take the exponentials)
+    c = np.where(mu < 0.0, np.cos(q), np.cosh(h))
     small = q < 1e-4
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(mu < 0.0, np.sin(q) / q, np.sinh(q) / q)
+        s = np.where(mu < 0.0, np.sin(q) / q, np.sinh(h) / h)
     s = np.where(small, 1.0 + mu / 6.0, s)
     return c, s
 
