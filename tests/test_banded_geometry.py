@@ -252,3 +252,22 @@ def test_the_dense_solver_stands_in_when_arpack_fails(monkeypatch):
     # main's dense solver shifts far below the first mode, which costs it digits (measured 2.9e-6)
     assert dense.frequencies_hz == pytest.approx(sparse.frequencies_hz, rel=2e-5)
     assert np.max(np.abs(dense.shapes - sparse.shapes)) < 1e-4
+
+
+def test_a_uniform_thick_bar_rings_at_the_closed_forms_frequencies():
+    from barsynth.physics.timoshenko import timoshenko_frequencies
+
+    p = {**preset_parameters("banded", "glockenspiel-bar"), "mode_t60s_s": (1.0,) * 4}  # steel 19.23 x 0.75 cm
+    closed = timoshenko_frequencies(youngs_modulus_pa=200e9, density_kg_m3=7850.0, shear_modulus_pa=77.5e9,
+                                    shear_coefficient=0.8492, length_m=0.1923, thickness_m=0.0075, bc="free-free",
+                                    count=4)
+    described = [m.frequency_hz for m in MODEL.describe(p, sample_rate=RATE)]
+    assert described == pytest.approx(closed, rel=1e-12)
+    gridded = timoshenko_grid_modes(youngs_modulus_pa=200e9, density_kg_m3=7850.0, shear_modulus_pa=77.5e9,
+                                    shear_coefficient=0.8492, length_m=0.1923, thickness_m=0.0075, width_m=0.025,
+                                    bc="free-free", count=4)
+    assert closed == pytest.approx(gridded, rel=1e-5)  # the grid whose shapes the model takes agrees
+    x = raw(p, 0.5)
+    skip = int(0.05 * RATE)
+    for f in closed:
+        assert abs(cents(measure_partial(x[skip:], RATE, f).frequency_hz, f)) < 1.0

@@ -13,7 +13,9 @@ mass as its modal mass (for a uniform thin bar, a mean square of 1), and each st
 from the ``x = 0`` end. Between nodes a shape is interpolated linearly.
 
 A uniform Euler–Bernoulli bar needs no grid: the model takes its closed form (the very modes
-and shapes of ``tuning = physics``, see :func:`closed_form`).
+and shapes of ``tuning = physics``, see :func:`closed_form`). A uniform Timoshenko bar's
+frequencies are its closed form's (:func:`~barsynth.physics.timoshenko.timoshenko_frequencies`,
+for a bar no thicker than long), its shapes the grid's.
 
 A design takes 0.05 to 0.5 s (more for 24 modes): it is kept, in memory and on disk for the
 program (:mod:`barsynth.designcache`), so a redesign for another setting finds it.
@@ -31,7 +33,7 @@ import numpy as np
 from ...physics.profiles import Profile
 from ..rows import profile_of, shear_of
 
-SOURCES = ("barsynth.models.banded.geometry", "barsynth.physics.grid",
+SOURCES = ("barsynth.models.banded.geometry", "barsynth.physics.grid", "barsynth.physics.timoshenko",
            "barsynth.physics.timoshenko_grid", "barsynth.physics.profiles")
 """The code a design comes from (the on-disk cache's key covers it)."""
 
@@ -110,9 +112,16 @@ def _design(theory: str, youngs_modulus_pa: float, density_kg_m3: float, shear_m
             return omega, grid.x_m / length_m, vectors, grid.mass
 
     points = points_for(count)
-    coarse = solve(points)[0]
     omega, x, deflections, masses = solve(2 * points - 1)
-    frequencies = (4.0 * omega - coarse) / 3.0 / (2.0 * math.pi)
+    uniform = kind == "uniform" or (kind in ("parabolic", "circular") and depth == 0.0)
+    if theory == "timoshenko" and uniform and thickness_m <= length_m:  # the closed form's domain
+        from ...physics.timoshenko import timoshenko_frequencies
+
+        frequencies = timoshenko_frequencies(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3,
+                                             shear_modulus_pa=shear_modulus_pa, shear_coefficient=shear_coefficient,
+                                             length_m=length_m, thickness_m=thickness_m, bc="free-free", count=count)
+    else:
+        frequencies = (4.0 * omega - solve(points)[0]) / 3.0 / (2.0 * math.pi)
     mass = float(np.sum(masses))
     shapes = (deflections * math.sqrt(mass)).T  # modes x nodes: modal mass = the bar's mass
     shapes *= np.where(shapes[:, :1] < 0.0, -1.0, 1.0)
