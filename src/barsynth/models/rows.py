@@ -14,13 +14,14 @@ if TYPE_CHECKING:
     from ..exciters import Exciter
 
 
-def bar_size_parameters(note: str = "", when: Any = ()) -> list[Parameter]:
+def bar_size_parameters(note: str = "", when: Any = (), shear: bool = False) -> list[Parameter]:
     """Material and size of a rectangular bar; ``note`` prefixes each doc (e.g. when it applies)
-    and ``when`` says when they act (see :class:`~barsynth.parameters.Parameter`)."""
+    and ``when`` says when they act (see :class:`~barsynth.parameters.Parameter`). With ``shear``
+    the material also sets the rows of :func:`theory_parameters` (which the table must have)."""
     return [
         Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 69e9, f"{note}Young's modulus E", scale="log", when=when),
         Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 2700.0, f"{note}density rho", scale="log", when=when),
-        material_parameter(note, when),
+        material_parameter(note, when, shear=shear),
         Parameter("length_m", "m", 0.02, 3.0, 0.30, f"{note}length of the bar", scale="log", when=when),
         Parameter("thickness_m", "m", 0.0003, 0.1, 0.01, f"{note}thickness h (bending direction)", scale="log",
                   when=when),
@@ -42,17 +43,60 @@ def level_parameter() -> Parameter:
     return Parameter("level_db", "dB", -60.0, 40.0, 0.0, "output gain re the pick-up velocity in m/s")
 
 
-def material_parameter(note: str = "", when: Any = ()) -> Parameter:
+def material_parameter(note: str = "", when: Any = (), shear: bool = False) -> Parameter:
     """``material``: a name from the materials table that sets ``youngs_modulus_pa`` and
-    ``density_kg_m3`` (``custom``: those two as given)."""
+    ``density_kg_m3`` (``custom``: those two as given); with ``shear`` also ``shear_modulus_pa``
+    and ``shear_coefficient`` (:func:`material_shear`)."""
     from ..physics.materials import material, materials
 
-    def lookup(name: str) -> tuple[float, float]:
+    def lookup(name: str) -> tuple[float, ...]:
         m = material(name)
-        return m.youngs_modulus_pa, m.density_kg_m3
+        return (m.youngs_modulus_pa, m.density_kg_m3, *(material_shear(name) if shear else ()))
 
+    names = ("youngs_modulus_pa", "density_kg_m3", *(("shear_modulus_pa", "shear_coefficient") if shear else ()))
+    sets_text = ", ".join(names[:-1]) + " and " + names[-1]
     return Parameter("material", "", None, None, "custom",
-                     f"{note}a material from the materials table (barsynth materials): sets youngs_modulus_pa "
-                     "and density_kg_m3; custom keeps those as given",
-                     kind=CHOICE, choices=("custom", *materials()), when=when,
-                     sets=Sets(("youngs_modulus_pa", "density_kg_m3"), lookup))
+                     f"{note}a material from the materials table (barsynth materials): sets {sets_text}; "
+                     "custom keeps those as given",
+                     kind=CHOICE, choices=("custom", *materials()), when=when, sets=Sets(names, lookup))
+
+
+ASSUMED_POISSON_RATIO = 0.33
+"""The Poisson ratio taken for a material whose entry gives no shear stiffness."""
+
+
+def material_shear(name: str) -> tuple[float, float]:
+    """The shear modulus ``G`` (Pa) and shear coefficient ``kappa`` of material ``name``: the
+    entry's own where it gives them, else those of an isotropic solid with
+    :data:`ASSUMED_POISSON_RATIO` (``G = E / (2 (1 + nu))``, Cowper's ``kappa``)."""
+    from ..physics.materials import material
+
+    m = material(name)
+    g = getattr(m, "shear_modulus_pa", None)
+    kappa = getattr(m, "shear_coefficient", None)
+    nu = ASSUMED_POISSON_RATIO
+    if g is None:
+        g = m.youngs_modulus_pa / (2.0 * (1.0 + nu))
+    if kappa is None:
+        kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu)  # Cowper (1966), a rectangle
+    return float(g), float(kappa)
+
+
+THEORIES = ("euler-bernoulli", "timoshenko")
+TIMOSHENKO = {"theory": ("timoshenko",)}
+
+
+def theory_parameters() -> list[Parameter]:
+    """``theory`` (Euler–Bernoulli or Timoshenko, spec 8.2) and the shear stiffness the thick bar
+    needs (acting only with ``theory = timoshenko``); a ``material`` made with ``shear`` sets them."""
+    return [
+        Parameter("theory", "", None, None, "euler-bernoulli",
+                  "the bar's physics: euler-bernoulli (thin: bending only) or timoshenko (thick: shear and "
+                  "rotary inertia lower the high modes)", kind=CHOICE, choices=THEORIES),
+        Parameter("shear_modulus_pa", "Pa", 0.0, 4e11, 0.0,
+                  "shear modulus G (a wood's across the grain, G_LT); a material sets it; 0: not given "
+                  "(refused with material = custom)", when=TIMOSHENKO),
+        Parameter("shear_coefficient", "", 0.5, 1.0, 5.0 / 6.0,
+                  "the cross-section's shear coefficient kappa: 5/6 for a rectangle, Cowper's "
+                  "10 (1 + nu) / (12 + 11 nu) for an isotropic one (a material sets it)", when=TIMOSHENKO),
+    ]

@@ -2,8 +2,9 @@
 
 Sources: S. Bilbao, Numerical Sound Synthesis (Wiley 2009), ch. 7 (the theta scheme, its
 stability and its losses); A. Chaigne and V. Doutaut, JASA 101 (1997) (non-uniform bars).
-The grid operator ``M, K, L`` comes from :mod:`barsynth.physics.grid`; here it becomes the
-step's matrices (see :mod:`.kernel`), the points where exciters and the pick-up meet the bar,
+The grid operator ``M, K, L`` comes from :mod:`barsynth.physics.grid` (Euler–Bernoulli) or
+:mod:`barsynth.physics.timoshenko_grid` (``theory = timoshenko``: deflections and rotations
+interleaved, the same pentadiagonal layout, so the same step); here it becomes the step's matrices (see :mod:`.kernel`), the points where exciters and the pick-up meet the bar,
 the decimation filter, and the modes and T60s the scheme really rings.
 """
 
@@ -18,6 +19,7 @@ from ...errors import ParameterError
 from ...exciters import PluckHold, StaticPoint
 from ...physics.grid import BarGrid, bar_grid, grid_eigen, grid_modes, highest_frequency, rigid_mode_count
 from ...physics.profiles import Profile
+from ...physics.timoshenko_grid import TwoFieldGrid, timoshenko_grid, timoshenko_grid_modes
 from . import kernel as K
 from .table import FdParams
 
@@ -26,19 +28,55 @@ def profile_of(p: FdParams) -> Profile:
     return Profile(p.profile, depth=p.undercut_depth, width=p.undercut_width, samples=tuple(p.profile_samples))
 
 
-def grid_of(p: FdParams) -> BarGrid:
-    """The grid operator of the bar ``p`` describes (spec 1.6)."""
-    return bar_grid(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
-                    thickness_m=p.thickness_m, width_m=p.width_m, bc=p.bc, points=p.points, profile=profile_of(p))
+SMALLEST_SHEAR_MODULUS_PA = 1e6
+"""The least shear modulus a Timoshenko bar takes (Pa): far below any solid's."""
 
 
-def rigid_free(grid: BarGrid, vector: np.ndarray) -> np.ndarray:
-    """``vector`` (a force or an interpolation vector) with the rigid-body parts taken out,
-    ``v - M R R^T v`` for the M-orthonormal rigid motions R of a free-free bar."""
+def shear_of(p: FdParams) -> tuple[float, float]:
+    """The shear modulus (Pa) and shear coefficient of a Timoshenko bar ``p``: as given, or as its
+    material set them. Raises :class:`ParameterError` when no shear modulus is given."""
+    g = p.shear_modulus_pa
+    if not g >= SMALLEST_SHEAR_MODULUS_PA:
+        raise ParameterError(f"parameter shear_modulus_pa = {g:g} is missing for theory = timoshenko; allowed: "
+                             f"{SMALLEST_SHEAR_MODULUS_PA:g} to 4e+11 Pa, or a material (which sets it)")
+    return g, p.shear_coefficient
+
+
+def grid_of(p: FdParams) -> BarGrid | TwoFieldGrid:
+    """The grid operator of the bar ``p`` describes (spec 1.6; a two-field grid for a
+    Timoshenko bar, spec 8.2)."""
+    bar = dict(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
+               thickness_m=p.thickness_m, width_m=p.width_m, bc=p.bc, points=p.points, profile=profile_of(p))
+    if p.theory == "timoshenko":
+        g, kappa = shear_of(p)
+        return timoshenko_grid(shear_modulus_pa=g, shear_coefficient=kappa, **bar)
+    return bar_grid(**bar)
+
+
+def deflection_mass(grid: BarGrid | TwoFieldGrid) -> np.ndarray:
+    """The mass (kg) at each moving deflection node (a two-field grid's rotations left out)."""
+    return grid.mass[grid.w_index] if isinstance(grid, TwoFieldGrid) else grid.mass
+
+
+def rigid_motions(grid: BarGrid | TwoFieldGrid) -> list[np.ndarray]:
+    """The grid's rigid-body motions over all its unknowns (none unless free-free): translation
+    and rotation about the centre of mass (with a two-field grid's rotations at 1)."""
     if rigid_mode_count(grid.bc) == 0:
+        return []
+    if isinstance(grid, TwoFieldGrid):
+        return grid.rigid_motions()
+    m = grid.mass
+    return [np.ones_like(m), grid.x_m - np.sum(m * grid.x_m) / np.sum(m)]
+
+
+def rigid_free(grid: BarGrid | TwoFieldGrid, vector: np.ndarray) -> np.ndarray:
+    """``vector`` (a force or an interpolation vector) with the rigid-body parts taken out,
+    ``v - M R R^T v`` for the M-orthonormal rigid motions R of a free-free bar (they are
+    M-orthogonal: the rotation is about the centre of mass)."""
+    rigid = rigid_motions(grid)
+    if not rigid:
         return vector
     m = grid.mass
-    rigid = [np.ones_like(m), grid.x_m - np.sum(m * grid.x_m) / np.sum(m)]  # translation, rotation about the centre
     out = vector.copy()
     for r in rigid:
         r = r / math.sqrt(np.sum(m * r * r))
@@ -46,7 +84,7 @@ def rigid_free(grid: BarGrid, vector: np.ndarray) -> np.ndarray:
     return out
 
 
-def point_vector(grid: BarGrid, position: float) -> np.ndarray:
+def point_vector(grid: BarGrid | TwoFieldGrid, position: float) -> np.ndarray:
     """The interpolation vector of ``position`` (fraction of the length), rigid motion left out:
     a unit force there, and the reading of a displacement there. Zero at a fixed node."""
     index, weight = grid.weights_at(position)
@@ -55,7 +93,7 @@ def point_vector(grid: BarGrid, position: float) -> np.ndarray:
     return rigid_free(grid, vector)
 
 
-def check_stability(p: FdParams, grid: BarGrid, output_rate: float) -> float:
+def check_stability(p: FdParams, grid: BarGrid | TwoFieldGrid, output_rate: float) -> float:
     """The largest stable theta for this grid and step (inf when any is); refuses ``p.theta`` above it."""
     omega = highest_frequency(grid)
     courant = (omega / (output_rate * p.oversampling)) ** 2  # (Omega k)^2
@@ -119,8 +157,9 @@ def stencils(b: np.ndarray, c: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, n
     """The kernel's coefficient rows (:class:`.kernel.Scheme`) from the dense matrices ``B``,
     ``C / k`` and ``A``: ``bands`` and ``factors``, each row padded."""
     n = b.shape[0]
-    bands = np.zeros((8, n + 2 * K.PAD))
-    for row, (matrix, offset) in enumerate(((b, 0), (b, -1), (b, 1), (b, -2), (b, 2), (c, 0), (c, -1), (c, 1))):
+    bands = np.zeros((10, n + 2 * K.PAD))
+    for row, (matrix, offset) in enumerate(((b, 0), (b, -1), (b, 1), (b, -2), (b, 2),
+                                            (c, 0), (c, -1), (c, 1), (c, -2), (c, 2))):
         for i in range(n):
             j = i + offset
             if 0 <= j < n:
@@ -141,7 +180,7 @@ class Point(NamedTuple):
 class Design(NamedTuple):
     """Everything the voice needs for ``p`` at an output rate, none of it state."""
 
-    grid: BarGrid
+    grid: BarGrid | TwoFieldGrid
     scheme: K.Scheme
     strike: Point
     bow: Point
@@ -181,7 +220,7 @@ def design(p: FdParams, output_rate: float) -> Design:
 
 
 # -- the pluck -----------------------------------------------------------------------------
-def plucked_shape(hold: PluckHold, grid: BarGrid, position: float) -> np.ndarray:
+def plucked_shape(hold: PluckHold, grid: BarGrid | TwoFieldGrid, position: float) -> np.ndarray:
     """The bar held out ``hold.displacement_m`` at ``position`` (fraction of the length) by a
     point force (rigid motion left out): the static deflection under the force
     :meth:`~barsynth.exciters.PluckHold.force_n` gives (the pluck's coupled form,
@@ -228,8 +267,8 @@ class SchemeModes(NamedTuple):
     frequency_hz: np.ndarray
     t60_s: np.ndarray
     shapes: np.ndarray
-    """Mass-normalised shapes (nodes x modes)."""
-    grid: BarGrid
+    """Mass-normalised shapes (unknowns x modes)."""
+    grid: BarGrid | TwoFieldGrid
 
 
 def scheme_modes(p: FdParams, sample_rate: float, count: int) -> SchemeModes:
@@ -250,13 +289,17 @@ def scheme_modes(p: FdParams, sample_rate: float, count: int) -> SchemeModes:
 def reference_errors_cents(p: FdParams, sample_rate: float, count: int) -> np.ndarray:
     """How far (cents) each mode the scheme rings lies from the converged bar's: spec 1.2's
     closed form for a uniform bar, the Richardson-extrapolated operator for any other
-    profile. Negative: the grid and the step ring it flat."""
+    profile and for any Timoshenko bar (spec 8.2). Negative: the grid and the step ring it flat."""
     found = scheme_modes(p, sample_rate, count).frequency_hz
     if found.size == 0:
         return found
     bar = dict(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
                thickness_m=p.thickness_m, bc=p.bc)
-    if p.profile == "uniform":
+    if p.theory == "timoshenko":  # any profile: the extrapolated two-field operator (to about 1e-7)
+        g, kappa = shear_of(p)
+        reference = timoshenko_grid_modes(count=found.size, width_m=p.width_m, profile=profile_of(p),
+                                          shear_modulus_pa=g, shear_coefficient=kappa, **bar)
+    elif p.profile == "uniform":
         from ...physics import bar_frequencies
 
         reference = bar_frequencies(count=found.size, **bar)

@@ -8,7 +8,7 @@ from ...exciters import BOWED, STRUCK_OR_PLUCKED, Bow, Pluck, Strike
 from ...parameters import CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
 from ...physics.boundary import BOUNDARY_CONDITIONS
 from ...physics.profiles import PROFILE_KINDS, THINNEST
-from ..rows import bar_size_parameters, excitation_parameter, level_parameter
+from ..rows import bar_size_parameters, excitation_parameter, level_parameter, theory_parameters
 
 UNDERCUT = {"profile": ("parabolic", "circular")}
 
@@ -27,6 +27,9 @@ class FdParams:
     length_m: float
     thickness_m: float
     width_m: float
+    theory: str
+    shear_modulus_pa: float
+    shear_coefficient: float
     bc: str
     profile: str
     undercut_depth: float
@@ -56,7 +59,8 @@ class FdParams:
 FD_TABLE = ParameterTable(
     "fd",
     [
-        *bar_size_parameters(),
+        *bar_size_parameters(shear=True),
+        *theory_parameters(),
         Parameter("bc", "", None, None, "free-free", "boundary conditions at the two ends (x = 0 first)",
                   kind=CHOICE, choices=BOUNDARY_CONDITIONS),
         Parameter("profile", "", None, None, "uniform",
