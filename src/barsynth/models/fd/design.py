@@ -153,19 +153,31 @@ def factor(diagonal: np.ndarray, first: np.ndarray, second: np.ndarray) -> tuple
     return l1, l2, 1.0 / d
 
 
-def stencils(b: np.ndarray, c: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def loss_reach(c: np.ndarray) -> int:
+    """How far apart the unknowns are that the loss matrix ``c`` couples (1 or 2: the kernel
+    takes one pair of its off-diagonal bands; a tridiagonal or diagonal one counts as 1)."""
+    if np.any(np.diagonal(c, 1)):
+        if np.any(np.diagonal(c, 2)):
+            raise ValueError("the loss matrix couples neighbours one and two apart")
+        return 1
+    return 2 if np.any(np.diagonal(c, 2)) else 1
+
+
+def stencils(b: np.ndarray, c: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     """The kernel's coefficient rows (:class:`.kernel.Scheme`) from the dense matrices ``B``,
-    ``C / k`` and ``A``: ``bands`` and ``factors``, each row padded."""
+    ``C / k`` and ``A``: ``bands`` and ``factors``, each row padded; ``C``'s off-diagonal pair is
+    the one :func:`loss_reach` finds."""
     n = b.shape[0]
-    bands = np.zeros((10, n + 2 * K.PAD))
+    reach = loss_reach(c)
+    bands = np.zeros((8, n + 2 * K.PAD))
     for row, (matrix, offset) in enumerate(((b, 0), (b, -1), (b, 1), (b, -2), (b, 2),
-                                            (c, 0), (c, -1), (c, 1), (c, -2), (c, 2))):
+                                            (c, 0), (c, -reach), (c, reach))):
         for i in range(n):
             j = i + offset
             if 0 <= j < n:
                 bands[row, K.PAD + i] = matrix[i, j]
     l1, l2, inv_d = factor(np.diagonal(a).copy(), np.diagonal(a, 1).copy(), np.diagonal(a, 2).copy())
-    return bands, np.array([K.padded(l1), K.padded(l2), K.padded(inv_d)])
+    return bands, np.array([K.padded(l1), K.padded(l2), K.padded(inv_d)]), reach
 
 
 class Point(NamedTuple):
@@ -204,7 +216,7 @@ def design(p: FdParams, output_rate: float) -> Design:
     b = 2.0 * np.diag(m) / k ** 2 - p.theta * stiff
     c = damping / k
     try:
-        bands, factors = stencils(b, c, a)
+        bands, factors, reach = stencils(b, c, a)
     except ValueError:
         raise ParameterError("parameters give a step matrix that cannot be solved; allowed: a bar whose grid "
                              "is well conditioned (try fewer points)") from None
@@ -214,7 +226,7 @@ def design(p: FdParams, output_rate: float) -> Design:
         response = K.solve(at, factors)
         return Point(K.padded(at), K.padded(response), float(np.dot(at, response)))
 
-    return Design(grid, K.Scheme(bands, factors, rate, p.oversampling), point(p.strike_position),
+    return Design(grid, K.Scheme(bands, factors, rate, p.oversampling, reach), point(p.strike_position),
                   point(p.bow_position), K.padded(point_vector(grid, p.pickup_position)),
                   decimation_filter(p.oversampling, output_rate), 10.0 ** (p.level_db / 20.0))
 
