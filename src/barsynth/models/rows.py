@@ -62,7 +62,8 @@ def material_parameter(note: str = "", when: Any = (), shear: bool = False) -> P
 
 
 ASSUMED_POISSON_RATIO = 0.33
-"""The Poisson ratio taken for a material whose entry gives no shear stiffness."""
+"""The Poisson ratio taken where no shear stiffness is given (a material's entry without one, a
+``shear_modulus_pa`` of 0)."""
 
 
 def material_shear(name: str) -> tuple[float, float]:
@@ -94,8 +95,8 @@ def theory_parameters() -> list[Parameter]:
                   "the bar's physics: euler-bernoulli (thin: bending only) or timoshenko (thick: shear and "
                   "rotary inertia lower the high modes)", kind=CHOICE, choices=THEORIES),
         Parameter("shear_modulus_pa", "Pa", 0.0, 4e11, 0.0,
-                  "shear modulus G (a wood's across the grain, G_LT); a material sets it; 0: not given "
-                  "(refused with material = custom)", when=TIMOSHENKO),
+                  "shear modulus G (a wood's across the grain, G_LT); a material sets it; 0: an isotropic "
+                  "solid's, E / (2 (1 + 0.33))", when=TIMOSHENKO),
         Parameter("shear_coefficient", "", 0.5, 1.0, 5.0 / 6.0,
                   "the cross-section's shear coefficient kappa: 5/6 for a rectangle, Cowper's "
                   "10 (1 + nu) / (12 + 11 nu) for an isotropic one (a material sets it)", when=TIMOSHENKO),

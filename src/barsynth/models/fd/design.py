@@ -20,6 +20,7 @@ from ...exciters import PluckHold, StaticPoint
 from ...physics.grid import BarGrid, bar_grid, grid_eigen, grid_modes, highest_frequency, rigid_mode_count
 from ...physics.profiles import Profile
 from ...physics.timoshenko_grid import TwoFieldGrid, timoshenko_grid, timoshenko_grid_modes
+from ..rows import ASSUMED_POISSON_RATIO
 from . import kernel as K
 from .table import FdParams
 
@@ -28,17 +29,11 @@ def profile_of(p: FdParams) -> Profile:
     return Profile(p.profile, depth=p.undercut_depth, width=p.undercut_width, samples=tuple(p.profile_samples))
 
 
-SMALLEST_SHEAR_MODULUS_PA = 1e6
-"""The least shear modulus a Timoshenko bar takes (Pa): far below any solid's."""
-
-
 def shear_of(p: FdParams) -> tuple[float, float]:
-    """The shear modulus (Pa) and shear coefficient of a Timoshenko bar ``p``: as given, or as its
-    material set them. Raises :class:`ParameterError` when no shear modulus is given."""
-    g = p.shear_modulus_pa
-    if not g >= SMALLEST_SHEAR_MODULUS_PA:
-        raise ParameterError(f"parameter shear_modulus_pa = {g:g} is missing for theory = timoshenko; allowed: "
-                             f"{SMALLEST_SHEAR_MODULUS_PA:g} to 4e+11 Pa, or a material (which sets it)")
+    """The shear modulus (Pa) and shear coefficient of a Timoshenko bar ``p``: as given or as its
+    material set them; a shear modulus of 0 (not given) is an isotropic solid's with Poisson's
+    ratio :data:`~barsynth.models.rows.ASSUMED_POISSON_RATIO`, ``E / (2 (1 + nu))``."""
+    g = p.shear_modulus_pa or p.youngs_modulus_pa / (2.0 * (1.0 + ASSUMED_POISSON_RATIO))
     return g, p.shear_coefficient
 
 
