@@ -142,6 +142,17 @@ def test_every_exciter_plays_the_thick_bar_and_a_free_one_stays_put(excitation):
     assert abs(np.mean(x)) < 2e-3 * np.sqrt(np.mean(x ** 2))
 
 
+@pytest.mark.parametrize("bc,position", [("clamped-free", 1.0), ("free-free", 0.8)])
+def test_a_pluck_holds_the_thick_bar_out_where_asked(bc, position):
+    """The static deflection of the two-field grid (eigh of K and M, its rigid motions left out)."""
+    voice = FdVoice({**THICK, "bc": bc, "excitation": "pluck", "pluck_displacement_mm": 2.0,
+                     "strike_position": position}, sample_rate=RATE)
+    voice.trigger()
+    assert float(np.dot(voice._mallet.at, voice._bar.u)) == pytest.approx(2e-3, rel=1e-9)
+    rotations = np.delete(voice._bar.u[2:-2], voice._design.grid.w_index)
+    assert np.abs(rotations).max() > 1e-3  # radians: a held-out bar is bent, its sections turn
+
+
 def test_a_material_sets_the_shear_and_euler_bernoulli_is_the_default():
     assert MODEL.resolve({}).theory == "euler-bernoulli"
     # no shear modulus given: an isotropic solid's with nu = 0.33 (the default aluminium's)

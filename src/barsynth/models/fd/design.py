@@ -48,9 +48,15 @@ def grid_of(p: FdParams) -> BarGrid | TwoFieldGrid:
     return bar_grid(**bar)
 
 
+def deflection(grid: BarGrid | TwoFieldGrid, vector: np.ndarray) -> np.ndarray:
+    """The entries of ``vector`` (over the grid's unknowns) at its moving deflection nodes (a
+    two-field grid's rotations left out)."""
+    return grid.deflection(vector) if isinstance(grid, TwoFieldGrid) else vector
+
+
 def deflection_mass(grid: BarGrid | TwoFieldGrid) -> np.ndarray:
     """The mass (kg) at each moving deflection node (a two-field grid's rotations left out)."""
-    return grid.mass[grid.w_index] if isinstance(grid, TwoFieldGrid) else grid.mass
+    return deflection(grid, grid.mass)
 
 
 def rigid_motions(grid: BarGrid | TwoFieldGrid) -> list[np.ndarray]:
@@ -240,7 +246,7 @@ def plucked_shape(hold: PluckHold, grid: BarGrid | TwoFieldGrid, position: float
     values, vectors = values[elastic], vectors[:, elastic]
     force_at = point_vector(grid, position)  # (the point vector is also the unit force vector)
     shape = vectors @ ((vectors.T @ force_at) / values)  # the deflection under a unit force (m/N)
-    largest = float(np.max(np.abs(shape))) if shape.size else 0.0
+    largest = float(np.max(np.abs(deflection(grid, shape)))) if shape.size else 0.0  # (m: rotations left out)
     there = float(np.dot(force_at, shape))
     if there > np.finfo(float).tiny:
         return shape * hold.force_n(StaticPoint(there, largest))
