@@ -6,7 +6,6 @@ them; blocks against one render; bad settings refused in one line."""
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest
@@ -22,8 +21,8 @@ from barsynth.physics.timoshenko_grid import timoshenko_grid_modes
 
 MODEL = get_model("fd")
 RATE = 44100
-SHEAR = dict(shear_modulus_pa=1.4e9, shear_coefficient=5 / 6)  # rosewood across the grain (E / G = 14)
-ROSEWOOD = dict(youngs_modulus_pa=20e9, density_kg_m3=1000.0, length_m=0.40, width_m=0.05, thickness_m=0.02)
+SHEAR = {"shear_modulus_pa": 1.4e9, "shear_coefficient": 5 / 6}  # rosewood across the grain (E / G = 14)
+ROSEWOOD = {"youngs_modulus_pa": 20e9, "density_kg_m3": 1000.0, "length_m": 0.40, "width_m": 0.05, "thickness_m": 0.02}
 THICK = {**ROSEWOOD, **SHEAR, "theory": "timoshenko", "sigma0_per_s": 0.5, "sigma1_m2_s": 0.0}
 UNDERCUT = {"profile": "parabolic", "undercut_depth": 0.5, "undercut_width": 0.6, "strike_position": 0.9}
 
@@ -62,7 +61,7 @@ def test_a_thick_bar_rings_where_describe_says_and_shear_lowers_it(shape):
     thin = {**thick, "theory": "euler-bernoulli"}
     thin_found, _ = rendered_and_described(thin)
     measured = cents(thin_found, found)
-    bar = dict(bc="free-free", count=5, **ROSEWOOD)
+    bar = {"bc": "free-free", "count": 5, **ROSEWOOD}
     shaped = profile_of(MODEL.resolve(thick))
     euler = grid_modes(profile=shaped, **bar) if shape else bar_frequencies(
         **{k: v for k, v in bar.items() if k != "width_m"})
@@ -113,6 +112,21 @@ def energies(p, steps, lossless):
         voice.process(1, dtype=np.float64)
         out.append(scheme_energy(voice))
     return np.array(out)
+
+
+@pytest.mark.parametrize("steps,hardness,velocity", [(1, 1.0, 5.0), (4, 0.7, 1.0)])
+def test_a_strike_on_the_thick_bar_never_adds_energy(steps, hardness, velocity):
+    """The bar's scheme energy plus the mallet's after a strike is the mallet's before it."""
+    mass = 0.03
+    voice = FdVoice({**THICK, "oversampling": steps, "mallet_hardness": hardness, "mallet_mass_kg": mass,
+                     "mallet_velocity_m_s": velocity, "sigma0_per_s": 0.01}, sample_rate=RATE)
+    voice.trigger()
+    voice.process(int(0.05 * RATE), dtype=np.float64)
+    mallet = voice._mallet_state[0]
+    mallet_velocity = (mallet["z_m"] - mallet["z_prev_m"]) * voice._design.scheme.step_rate
+    total = scheme_energy(voice) + 0.5 * mass * mallet_velocity ** 2
+    assert total == pytest.approx(0.5 * mass * velocity ** 2, rel=2e-3)
+    assert mallet_velocity < 0 and scheme_energy(voice) > 0.01 * total  # it bounced off, the bar rings
 
 
 @pytest.mark.parametrize("theta", [0.5, 0.25, 0.0])
