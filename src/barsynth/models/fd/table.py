@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from ...exciters import BOWED, STRUCK_OR_PLUCKED, Bow, Pluck, Strike
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
 from ...physics.boundary import BOUNDARY_CONDITIONS
-from ..rows import bar_size_parameters, excitation_parameter, level_parameter, profile_parameters
+from ..rows import bar_size_parameters, excitation_parameter, level_parameter, profile_parameters, theory_parameters
 
 FD_EXCITERS = (Strike, Bow, Pluck)
 """The exciters it offers, in the order of its ``excitation`` choices (the model's ``exciters``)."""
@@ -23,6 +23,9 @@ class FdParams:
     length_m: float
     thickness_m: float
     width_m: float
+    theory: str
+    shear_modulus_pa: float
+    shear_coefficient: float
     bc: str
     profile: str
     undercut_depth: float
@@ -52,7 +55,8 @@ class FdParams:
 FD_TABLE = ParameterTable(
     "fd",
     [
-        *bar_size_parameters(),
+        *bar_size_parameters(shear=True),
+        *theory_parameters(),
         Parameter("bc", "", None, None, "free-free", "boundary conditions at the two ends (x = 0 first)",
                   kind=CHOICE, choices=BOUNDARY_CONDITIONS),
         *profile_parameters(),
