@@ -402,7 +402,10 @@ def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, wid
 @main.command()
 @click.option("--json", "as_json", is_flag=True, help="Print JSON: every field of every material.")
 def materials(as_json: bool) -> None:
-    """The materials table: E, rho, typical Q, what each entry is and its source.
+    """The materials table: E, rho, shear (nu, G, E/G, kappa), typical Q, what each entry is and its source.
+
+    Isotropic materials give Poisson's ratio nu (G = E / (2 (1 + nu)), kappa Cowper's value);
+    woods give G along the grain (G_LT, quartersawn bars; kappa 5/6) and show nu as -.
 
     Any model that takes Young's modulus and density takes one by name:
     --set material=steel (see `barsynth params MODEL`).
@@ -413,14 +416,18 @@ def materials(as_json: bool) -> None:
 
     table = all_materials()
     if as_json:
-        _json_out([asdict(mat) for mat in table.values()])
+        _json_out([{**asdict(mat), "modulus_ratio": mat.modulus_ratio, "shear_coefficient": mat.shear_coefficient}
+                   for mat in table.values()])
         return
     import textwrap
 
-    click.echo(f"{'material':<16} {'E (Pa)':>9}  {'rho (kg/m^3)':>12}  {'Q':>6}")
+    click.echo(f"{'material':<17} {'E (Pa)':>9}  {'rho (kg/m^3)':>12}  {'nu':>5}  {'G (Pa)':>9}  {'E/G':>5}  "
+               f"{'kappa':>6}  {'Q':>6}")
     for name, mat in table.items():
         q = f"{mat.typical_q:g}" if mat.typical_q else "-"
-        click.echo(f"{name:<16} {mat.youngs_modulus_pa:>9.3g}  {mat.density_kg_m3:>12.0f}  {q:>6}")
+        nu = f"{mat.poisson_ratio:g}" if mat.poisson_ratio is not None else "-"
+        click.echo(f"{name:<17} {mat.youngs_modulus_pa:>9.3g}  {mat.density_kg_m3:>12.0f}  {nu:>5}  "
+                   f"{mat.shear_modulus_pa:>9.3g}  {mat.modulus_ratio:>5.1f}  {mat.shear_coefficient:>6.4f}  {q:>6}")
         click.echo(textwrap.fill(f"{mat.description.rstrip('.')}. Source: {mat.source}", 100,
                                  initial_indent=" " * 4, subsequent_indent=" " * 4, break_on_hyphens=False))
 
@@ -832,34 +839,51 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
               show_default=True, help="Shape of the undercut.")
 @click.option("--undercut-width", type=_Real(""), default=0.6, show_default=True, metavar="FRACTION",
               help="Length of the undercut, as a fraction of the bar's length.")
+@_shear_options
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, width_m, target_ratio, profile,
-                  undercut_width, as_json):
+                  undercut_width, theory, poisson_ratio, shear_modulus_pa, shear_coefficient, as_json):
     """The undercut depth that tunes a free-free bar's f2/f1, and f3/f1 there.
 
+    With --theory timoshenko the bar is tuned as it really rings (shear and rotary
+    inertia): a thick wooden bar tuned in Euler-Bernoulli rings flat of the target.
+
     \b
-    Example:
+    Examples:
       barsynth tune-undercut --material rosewood --length 0.38 --thickness 0.02 --target-ratio 4
+      barsynth tune-undercut --material rosewood --length 0.4 --thickness 0.02 --width 0.05 --theory timoshenko
     """
     from .models.fd import FD_TABLE
     from .physics.undercut import tune_undercut as tune
 
     youngs_modulus_pa, density_kg_m3 = _material_constants(material, youngs_modulus_pa, density_kg_m3)
+    shear = _shear_constants(theory, material, youngs_modulus_pa, poisson_ratio, shear_modulus_pa, shear_coefficient)
 
     bar = {name: FD_TABLE[name].validate(value) for name, value in (
         ("youngs_modulus_pa", youngs_modulus_pa), ("density_kg_m3", density_kg_m3), ("length_m", length_m),
         ("thickness_m", thickness_m), ("width_m", width_m), ("undercut_width", undercut_width))}
     cut_width = bar.pop("undercut_width")
-    tuned = tune(target_ratio=target_ratio, kind=profile, undercut_width=cut_width, **bar)
+    tuned = tune(target_ratio=target_ratio, kind=profile, undercut_width=cut_width, theory=theory,
+                 shear_modulus_pa=shear.get("shear_modulus_pa"), shear_coefficient=shear.get("shear_coefficient"),
+                 **bar)
     settings = {**bar, "profile": profile, "undercut_depth": round(tuned.profile.depth, 6), "undercut_width": cut_width}
+    fd_knows_theory = "theory" in FD_TABLE
+    if theory != "euler-bernoulli" and fd_knows_theory:
+        settings["theory"] = theory
     if as_json:
-        _json_out({**tuned.to_json(), "fd_parameters": settings})
+        _json_out({**tuned.to_json(), **({"poisson_ratio": shear["poisson_ratio"]} if shear else {}),
+                   "fd_parameters": settings})
         return
+    shown = f" (G = {shear['shear_modulus_pa']:.4g} Pa, kappa = {shear['shear_coefficient']:.4f})" if shear else ""
     click.echo(f"{profile} undercut over {cut_width:g} of the length: depth {tuned.profile.depth:.4f} of the thickness "
-               f"({tuned.profile.depth * bar['thickness_m'] * 1000:.2f} mm)")
+               f"({tuned.profile.depth * bar['thickness_m'] * 1000:.2f} mm), {theory}{shown}")
     click.echo(f"{'mode':>4} {'frequency (Hz)':>15} {'ratio':>8}")
     for n, (f, r) in enumerate(zip(tuned.frequencies_hz, tuned.ratios), start=1):
         click.echo(f"{n:>4} {f:>15.3f} {r:>8.4f}")
+    ratios = tuned.ratios
+    click.echo(f"f2/f1 = {ratios[1]:.4f}" + (f", f3/f1 = {ratios[2]:.4f}" if ratios.size > 2 else ""))
+    if theory != "euler-bernoulli" and not fd_knows_theory:
+        click.echo("note: the fd model renders Euler-Bernoulli bars: there this depth rings sharper than tuned")
     click.echo("hear it: barsynth render fd " + " ".join(f"--set {k}={_shown(v)}" for k, v in settings.items())
                + " -o tuned.wav")
 
