@@ -168,11 +168,24 @@ class _Real(click.ParamType):
 
 class _Choice(click.Choice):
     """A choice option whose refusal is barsynth's one line
-    (``parameter bc = 'nope' is not a known choice; allowed: one of free-free, ...``)."""
+    (``parameter bc = 'nope' is not a known choice; allowed: one of free-free, ...``).
+    ``choices`` may be a function returning them, called when first needed (so a table in
+    a module that imports NumPy is not imported with the command line)."""
 
     def __init__(self, choices: Any, *, label: str | None = None):
-        super().__init__(choices)
+        self._load = choices if callable(choices) else None
+        super().__init__(() if callable(choices) else choices)
         self.label = label
+
+    @property
+    def choices(self) -> tuple[Any, ...]:
+        if self._load is not None:
+            self._choices, self._load = tuple(self._load()), None
+        return self._choices
+
+    @choices.setter
+    def choices(self, value: Any) -> None:
+        self._choices = tuple(value)
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
         try:
@@ -253,10 +266,13 @@ _THEORY_HELP = ("Bar theory: euler-bernoulli (thin bar, the default) or timoshen
 
 def _shear_options(command: Any) -> Any:
     """--theory, --poisson, --shear-modulus and --shear-coefficient."""
-    from .physics.theory import THEORIES
+    def theories() -> tuple[str, ...]:
+        from .physics.theory import THEORIES
+
+        return THEORIES
 
     for option in reversed([
-        click.option("--theory", type=_Choice(list(THEORIES)), default="euler-bernoulli", show_default=True,
+        click.option("--theory", type=_Choice(theories), default="euler-bernoulli", show_default=True,
                      help=_THEORY_HELP),
         click.option("--poisson", "poisson_ratio", type=_Real("(dimensionless)"), metavar="NU",
                      help="Poisson's ratio nu (isotropic bar): G = E / (2 (1 + nu)), kappa Cowper's value "
