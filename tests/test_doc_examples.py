@@ -34,6 +34,7 @@ MODULES = [
     "barsynth.physics.grid",
     "barsynth.physics.profiles",
     "barsynth.physics.undercut",
+    "barsynth.physics.theory",
     "barsynth.dsp.bow_stroke",
     "barsynth.analysis.bowing",
     "barsynth.studio.presets_file",

@@ -105,12 +105,14 @@ def bar_modes_hz(*, theory: str, youngs_modulus_pa: float, density_kg_m3: float,
 
     Examples
     --------
+    A rosewood marimba bar tuned to 1 : 4 in Euler–Bernoulli rings flat of it (spec 8.1):
+
     >>> bar = dict(youngs_modulus_pa=20e9, density_kg_m3=1000.0, length_m=0.4, thickness_m=0.02, width_m=0.05,
-    ...            bc="free-free", count=2)
+    ...            bc="free-free", count=2, profile=Profile("parabolic", depth=0.5895, width=0.6))
     >>> thin = bar_modes_hz(theory="euler-bernoulli", **bar)
     >>> thick = bar_modes_hz(theory="timoshenko", shear_modulus_pa=1.33e9, **bar)
-    >>> bool(thick[1] / thick[0] < thin[1] / thin[0])
-    True
+    >>> round(float(thin[1] / thin[0]), 3), round(float(thick[1] / thick[0]), 3)
+    (4.0, 3.854)
     """
     check_theory(theory)
     bar = dict(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3, length_m=length_m,
