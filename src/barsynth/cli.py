@@ -341,6 +341,12 @@ def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, wid
           shear_modulus_pa, shear_coefficient, profile, undercut_depth, undercut_width, count, as_json):
     """Mode frequencies of a bar: uniform or undercut, Euler-Bernoulli or Timoshenko.
 
+    lambda is the eigenvalue of a uniform Euler-Bernoulli bar of thickness h ringing at
+    each frequency (the textbook lambda_n for a uniform bar in that theory). With
+    --theory timoshenko each mode also shows its distance in cents from the Euler-Bernoulli
+    bar of the same shape; JSON adds theory, width_m, profile, the shear constants and
+    cents_from_euler_bernoulli.
+
     \b
     Examples:
       barsynth modes --material acrylic --length 0.3 --thickness 0.003 --bc free-free
