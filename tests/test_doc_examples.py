@@ -35,6 +35,8 @@ MODULES = [
     "barsynth.physics.profiles",
     "barsynth.physics.undercut",
     "barsynth.physics.theory",
+    "barsynth.physics.timoshenko",
+    "barsynth.physics.timoshenko_grid",
     "barsynth.dsp.bow_stroke",
     "barsynth.analysis.bowing",
     "barsynth.studio.presets_file",

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from barsynth.errors import ParameterError
-from barsynth.physics import bar_frequencies, cowper_shear_coefficient, material, materials
+from barsynth.physics import bar_frequencies, material, materials, shear_coefficient
 from barsynth.physics.grid import grid_modes
 from barsynth.physics.profiles import Profile
 from barsynth.physics.theory import THEORIES, bar_modes_hz, shear_constants
@@ -35,7 +35,7 @@ def test_every_material_has_plausible_shear(name):
         assert 0.0 < m.poisson_ratio < 0.5
         assert m.shear_modulus_pa == pytest.approx(m.youngs_modulus_pa / (2 * (1 + m.poisson_ratio)), rel=1e-12)
         assert 2.4 <= m.modulus_ratio <= 2.8
-        assert m.shear_coefficient == pytest.approx(cowper_shear_coefficient(m.poisson_ratio), rel=1e-12)
+        assert m.shear_coefficient == pytest.approx(shear_coefficient(m.poisson_ratio), rel=1e-12)
         assert "nu:" in m.source
     else:  # woods (and bamboo) along the grain: soft in shear
         assert 8.0 <= m.modulus_ratio <= 25.0
@@ -45,7 +45,7 @@ def test_every_material_has_plausible_shear(name):
 
 def test_shear_numbers_match_their_sources():
     # Cowper (1966) at nu = 0.33 (spec 8.2)
-    assert cowper_shear_coefficient(0.33) == pytest.approx(0.8509, abs=5e-5)
+    assert shear_coefficient(0.33) == pytest.approx(0.8509, abs=5e-5)
     # spec 8.3: aluminium nu 0.33, steel 0.29; rosewood E_L/G_LT 13-17 with E_L 20-23 GPa, rho 0.95-1.1 t/m^3
     assert material("aluminium").poisson_ratio == 0.33 and material("steel").poisson_ratio == 0.29
     assert 13 <= ROSEWOOD.modulus_ratio <= 17
@@ -69,7 +69,7 @@ def test_existing_entries_keep_their_e_and_rho():
 # -- shear constants and the dispatcher -------------------------------------------------
 def test_shear_constants():
     g, kappa = shear_constants(youngs_modulus_pa=69e9, poisson_ratio=0.33)
-    assert g == pytest.approx(69e9 / 2.66) and kappa == pytest.approx(cowper_shear_coefficient(0.33))
+    assert g == pytest.approx(69e9 / 2.66) and kappa == pytest.approx(shear_coefficient(0.33))
     assert shear_constants(youngs_modulus_pa=20e9, shear_modulus_pa=1.33e9) == (1.33e9, 5 / 6)
     assert shear_constants(youngs_modulus_pa=20e9, shear_modulus_pa=1.33e9, shear_coefficient=0.85)[1] == 0.85
     assert shear_constants(youngs_modulus_pa=20e9) == (None, 5 / 6)

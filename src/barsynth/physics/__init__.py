@@ -15,9 +15,10 @@ from .damping import (
     t60_from_alpha,
     t60_from_q,
 )
-from .materials import Material, cowper_shear_coefficient, material, materials
+from .materials import Material, material, materials
 from .modes import bar_frequencies, bending_wave_constant, mode_shape
 from .theory import THEORIES, bar_modes_hz, shear_constants
+from .timoshenko import shear_coefficient, timoshenko_frequencies
 from .timoshenko_grid import TwoFieldGrid, timoshenko_grid, timoshenko_grid_modes
 from .tuned_bar import TunedBar, tune_bar
 
@@ -32,7 +33,6 @@ __all__ = [
     "bar_modes_hz",
     "bar_frequencies",
     "bending_wave_constant",
-    "cowper_shear_coefficient",
     "damped_frequency",
     "lambda_ratios",
     "lambdas",
@@ -41,8 +41,10 @@ __all__ = [
     "mode_shape",
     "q_from_t60",
     "shear_constants",
+    "shear_coefficient",
     "t60_from_alpha",
     "t60_from_q",
+    "timoshenko_frequencies",
     "timoshenko_grid",
     "timoshenko_grid_modes",
     "tune_bar",

@@ -22,7 +22,7 @@ from importlib import resources
 from ..checks import show_value
 from ..errors import ParameterError
 
-__all__ = ["Material", "cowper_shear_coefficient", "material", "materials"]
+__all__ = ["Material", "material", "materials"]
 
 PLAIN_SHEAR_COEFFICIENT = 5.0 / 6.0
 """The shear coefficient of a rectangle without a Poisson ratio (Timoshenko's 5/6)."""
@@ -78,26 +78,16 @@ class Material:
         >>> round(material("aluminium").shear_coefficient, 4), round(material("rosewood").shear_coefficient, 4)
         (0.8509, 0.8333)
         """
+        from .timoshenko import shear_coefficient
+
         if self.poisson_ratio is None:
             return PLAIN_SHEAR_COEFFICIENT
-        return cowper_shear_coefficient(self.poisson_ratio)
+        return shear_coefficient(self.poisson_ratio)
 
     @property
     def modulus_ratio(self) -> float:
         """``E / G`` (dimensionless): about 2.6 for metals, 10-20 for woods along the grain."""
         return self.youngs_modulus_pa / self.shear_modulus_pa
-
-
-def cowper_shear_coefficient(poisson_ratio: float) -> float:
-    """Cowper's (1966) shear coefficient of a rectangular section, ``10 (1 + nu) / (12 + 11 nu)``.
-
-    Examples
-    --------
-    >>> round(cowper_shear_coefficient(0.33), 4)
-    0.8509
-    """
-    nu = float(poisson_ratio)
-    return 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu)
 
 
 def _positive_number(name: str, key: str, value: object) -> float:

@@ -19,8 +19,9 @@ import numpy as np
 
 from ..checks import check_number, show_value
 from ..errors import ParameterError
-from .materials import PLAIN_SHEAR_COEFFICIENT, cowper_shear_coefficient
+from .materials import PLAIN_SHEAR_COEFFICIENT
 from .profiles import Profile
+from .timoshenko import shear_coefficient as cowper_shear_coefficient
 
 THEORIES = ("euler-bernoulli", "timoshenko")
 """The bar theories :func:`bar_modes_hz` knows, thin first (the default everywhere)."""

@@ -207,7 +207,7 @@ def timoshenko_grid_modes(*, youngs_modulus_pa: float, density_kg_m3: float, she
     ...                           shear_coefficient=5 / 6, length_m=0.4, thickness_m=0.02, bc="free-free",
     ...                           count=3)
     >>> (f / f[0]).round(3).tolist()  # Euler–Bernoulli: 1, 2.757, 5.404
-    [1.0, 2.687, 5.079]
+    [1.0, 2.599, 4.714]
     """
     count = check_whole("count", count, "modes", minimum=1)
     if extrapolate and not MIN_POINTS <= points <= MAX_EXTRAPOLATED_POINTS:
