@@ -833,14 +833,17 @@ def test_material_in_params_set_and_materials(tmp_path):
     assert run("render", "twang", "--set", "material=steel", "--duration", "0.2", "-o", str(out)).exit_code == 0
     listed = run("materials").stdout
     for name, mat in table().items():
-        assert f"{name:<16} {mat.youngs_modulus_pa:>9.3g}" in listed
+        assert f"{name:<17} {mat.youngs_modulus_pa:>9.3g}" in listed
+        assert f"{mat.shear_modulus_pa:>9.3g}  {mat.modulus_ratio:>5.1f}  {mat.shear_coefficient:>6.4f}" in listed
     data = json.loads(run("materials", "--json").stdout)
     assert [m["name"] for m in data] == names
     for entry in data:
         mat = table()[entry["name"]]
         assert entry == {"name": mat.name, "youngs_modulus_pa": mat.youngs_modulus_pa,
                          "density_kg_m3": mat.density_kg_m3, "typical_q": mat.typical_q,
-                         "description": mat.description, "source": mat.source}
+                         "description": mat.description, "source": mat.source,
+                         "poisson_ratio": mat.poisson_ratio, "shear_modulus_pa": mat.shear_modulus_pa,
+                         "modulus_ratio": mat.modulus_ratio, "shear_coefficient": mat.shear_coefficient}
 
 
 def test_render_help_lists_every_model_with_its_summary():

@@ -34,6 +34,7 @@ MODULES = [
     "barsynth.physics.grid",
     "barsynth.physics.profiles",
     "barsynth.physics.undercut",
+    "barsynth.physics.theory",
     "barsynth.physics.timoshenko",
     "barsynth.physics.timoshenko_grid",
     "barsynth.dsp.bow_stroke",

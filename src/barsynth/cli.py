@@ -168,11 +168,24 @@ class _Real(click.ParamType):
 
 class _Choice(click.Choice):
     """A choice option whose refusal is barsynth's one line
-    (``parameter bc = 'nope' is not a known choice; allowed: one of free-free, ...``)."""
+    (``parameter bc = 'nope' is not a known choice; allowed: one of free-free, ...``).
+    ``choices`` may be a function returning them, called when first needed (so a table in
+    a module that imports NumPy is not imported with the command line)."""
 
     def __init__(self, choices: Any, *, label: str | None = None):
-        super().__init__(choices)
+        self._load = choices if callable(choices) else None
+        super().__init__(() if callable(choices) else choices)
         self.label = label
+
+    @property
+    def choices(self) -> tuple[Any, ...]:
+        if self._load is not None:
+            self._choices, self._load = tuple(self._load()), None
+        return self._choices
+
+    @choices.setter
+    def choices(self, value: Any) -> None:
+        self._choices = tuple(value)
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
         try:
@@ -247,53 +260,174 @@ def _material_constants(material: str | None, youngs_modulus_pa: float | None,
     return youngs_modulus_pa, density_kg_m3
 
 
+_THEORY_HELP = ("Bar theory: euler-bernoulli (thin bar, the default) or timoshenko (shear and rotary inertia: "
+                "thick bars, woods; needs a shear modulus, from --material, --poisson or --shear-modulus).")
+
+
+def _shear_options(command: Any) -> Any:
+    """--theory, --poisson, --shear-modulus and --shear-coefficient."""
+    def theories() -> tuple[str, ...]:
+        from .physics.theory import THEORIES
+
+        return THEORIES
+
+    for option in reversed([
+        click.option("--theory", type=_Choice(theories), default="euler-bernoulli", show_default=True,
+                     help=_THEORY_HELP),
+        click.option("--poisson", "poisson_ratio", type=_Real("(dimensionless)"), metavar="NU",
+                     help="Poisson's ratio nu (isotropic bar): G = E / (2 (1 + nu)), kappa Cowper's value "
+                          "10 (1 + nu) / (12 + 11 nu). Overrides the material's shear data; not with --shear-modulus."),
+        click.option("--shear-modulus", "shear_modulus_pa", type=_POSITIVE_PA, metavar="PA",
+                     help="Shear modulus G in Pa (a wood: G_LT along the grain); kappa then 5/6. Overrides the "
+                          "material's shear data; not with --poisson."),
+        click.option("--shear-coefficient", "shear_coefficient", type=_Real("(dimensionless)"), metavar="KAPPA",
+                     help="Shear coefficient kappa of the section (default: Cowper's from nu, else 5/6)."),
+    ]):
+        command = option(command)
+    return command
+
+
+def _shear_constants(theory: str, material: str | None, youngs_modulus_pa: float, poisson_ratio: float | None,
+                     shear_modulus_pa: float | None, shear_coefficient: float | None) -> dict[str, Any]:
+    """G, kappa and where nu came from, for --theory timoshenko: --poisson or --shear-modulus if given (either
+    replaces the material's shear data as a whole), else the material's; refused with euler-bernoulli."""
+    from .physics import material as lookup
+    from .physics.theory import shear_constants
+
+    given = [f"{name} = {value:g}" for name, value in (("poisson_ratio", poisson_ratio),
+                                                        ("shear_modulus_pa", shear_modulus_pa),
+                                                        ("shear_coefficient", shear_coefficient)) if value is not None]
+    if theory != "timoshenko":
+        if given:
+            raise ParameterError(f"parameter {' and '.join(given)} given with theory = {theory}; allowed: only with "
+                                 "--theory timoshenko (an Euler-Bernoulli bar has no shear)")
+        return {}
+    if poisson_ratio is None and shear_modulus_pa is None and material is not None:
+        mat = lookup(material)
+        poisson_ratio = mat.poisson_ratio
+        shear_modulus_pa = None if mat.poisson_ratio is not None else mat.shear_modulus_pa
+    g, kappa = shear_constants(youngs_modulus_pa=youngs_modulus_pa, poisson_ratio=poisson_ratio,
+                               shear_modulus_pa=shear_modulus_pa, shear_coefficient=shear_coefficient)
+    if g is None:
+        raise ParameterError("parameter shear_modulus_pa is missing; theory = timoshenko needs the shear modulus G "
+                             "in Pa: give --shear-modulus PA or --poisson NU (or --material NAME)")
+    return {"poisson_ratio": poisson_ratio, "shear_modulus_pa": g, "shear_coefficient": kappa}
+
+
+_PROFILE_HELP = ("Thickness profile: uniform (closed forms) or an undercut, parabolic or circular (grids, "
+                 "Richardson extrapolated), with --undercut-depth and --undercut-width.")
+
+
 @main.command()
 @_material_options
 @click.option("--thickness", "thickness_m", type=_POSITIVE_M, required=True, metavar="M",
-              help="Thickness h in m (bending direction).")
+              help="Thickness h in m (bending direction; the full thickness of an undercut bar).")
+@click.option("--width", "width_m", type=_POSITIVE_M, default=0.04, show_default=True, metavar="M",
+              help="Bar width in m (a uniform Euler-Bernoulli bar does not depend on it).")
 @click.option("--bc", "bc", required=True,
               type=_Choice(["free-free", "clamped-free", "clamped-clamped", "pinned-pinned", "clamped-pinned"]),
               help="Boundary conditions at the two ends.")
+@_shear_options
+@click.option("--profile", "profile", type=_Choice(["uniform", "parabolic", "circular"]), default="uniform",
+              show_default=True, help=_PROFILE_HELP)
+@click.option("--undercut-depth", "undercut_depth", type=_Real("(fraction of the thickness)"), metavar="FRACTION",
+              help="Depth of the undercut at the middle, as a FRACTION of the thickness (0 to 0.98; not metres: "
+                   "as in tune-undercut and the fd model). Required by parabolic and circular.")
+@click.option("--undercut-width", "undercut_width", type=_Real("(fraction of the length)"), metavar="FRACTION",
+              help="Length of the undercut, as a fraction of the bar's length (default 0.6 with an undercut).")
 @click.option("--count", type=_Whole(1, 1000, "modes"), default=6, show_default=True, help="Number of modes.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
-def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, bc, count, as_json):
-    """Mode frequencies of a uniform bar (Euler-Bernoulli).
+def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, width_m, bc, theory, poisson_ratio,
+          shear_modulus_pa, shear_coefficient, profile, undercut_depth, undercut_width, count, as_json):
+    """Mode frequencies of a bar: uniform or undercut, Euler-Bernoulli or Timoshenko.
+
+    lambda is the eigenvalue of a uniform Euler-Bernoulli bar of thickness h ringing at
+    each frequency (the textbook lambda_n for a uniform bar in that theory). With
+    --theory timoshenko each mode also shows its distance in cents from the Euler-Bernoulli
+    bar of the same shape; JSON adds theory, width_m, profile, the shear constants and
+    cents_from_euler_bernoulli.
 
     \b
-    Example:
+    Examples:
       barsynth modes --material acrylic --length 0.3 --thickness 0.003 --bc free-free
+      barsynth modes --material rosewood --length 0.4 --thickness 0.02 --width 0.05 --bc free-free --theory timoshenko
+      barsynth modes --material rosewood --length 0.4 --thickness 0.02 --width 0.05 --bc free-free \\
+          --theory timoshenko --profile parabolic --undercut-depth 0.62 --undercut-width 0.6
     """
-    from . import physics
+    import math
+
+    from .physics import bending_wave_constant
+    from .physics.profiles import Profile
+    from .physics.theory import bar_modes_hz
 
     youngs_modulus_pa, density_kg_m3 = _material_constants(material, youngs_modulus_pa, density_kg_m3)
-    freqs = physics.bar_frequencies(
-        youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3,
-        length_m=length_m, thickness_m=thickness_m, bc=bc, count=count,
-    )
-    lams = physics.lambdas(bc, count)
+    shear = _shear_constants(theory, material, youngs_modulus_pa, poisson_ratio, shear_modulus_pa, shear_coefficient)
+    if profile == "uniform":
+        given = [f"{name} = {value:g}" for name, value in (("undercut_depth", undercut_depth),
+                                                            ("undercut_width", undercut_width)) if value is not None]
+        if given:
+            raise ParameterError(f"parameter {' and '.join(given)} given with profile = uniform; allowed: only with "
+                                 "--profile parabolic or circular")
+        cut = None
+    else:
+        if undercut_depth is None:
+            raise ParameterError(f"parameter undercut_depth is missing; profile = {profile} needs --undercut-depth "
+                                 "FRACTION (0 to 0.98 of the thickness)")
+        cut = Profile(profile, depth=undercut_depth, width=0.6 if undercut_width is None else undercut_width)
+    bar = dict(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3, length_m=length_m,
+               thickness_m=thickness_m, width_m=width_m, bc=bc, count=count, profile=cut)
+    freqs = bar_modes_hz(theory=theory, shear_modulus_pa=shear.get("shear_modulus_pa"),
+                         shear_coefficient=shear.get("shear_coefficient"), **bar)
+    # the Euler-Bernoulli eigenvalue of a uniform bar ringing at f: the textbook lambda for a thin uniform bar
+    a = bending_wave_constant(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3,
+                              thickness_m=thickness_m)
+    lams = [math.sqrt(2.0 * math.pi * f * length_m ** 2 / a) for f in freqs]
+    if theory == "euler-bernoulli" and cut is None:
+        from .physics import lambdas
+
+        lams = [float(x) for x in lambdas(bc, count)]
+    thin = bar_modes_hz(theory="euler-bernoulli", **bar) if theory == "timoshenko" else freqs
+    cents = [1200.0 * math.log2(f / f0) for f, f0 in zip(freqs, thin)]
     if as_json:
-        _json_out({
+        out = {
             "bc": bc,
             "youngs_modulus_pa": youngs_modulus_pa,
             "density_kg_m3": density_kg_m3,
             "length_m": length_m,
             "thickness_m": thickness_m,
-            "lambdas": [float(x) for x in lams],
+            "lambdas": lams,
             "frequencies_hz": [float(f) for f in freqs],
             "ratios": [float(f / freqs[0]) for f in freqs],
-        })
+            "theory": theory,
+            "width_m": width_m,
+            "profile": "uniform" if cut is None else {"kind": cut.kind, "undercut_depth": cut.depth,
+                                                      "undercut_width": cut.width},
+        }
+        if theory == "timoshenko":
+            out.update(shear, cents_from_euler_bernoulli=cents)
+        _json_out(out)
         return
     click.echo(f"{bc} bar, L = {length_m:g} m, h = {thickness_m:g} m, "
                f"E = {youngs_modulus_pa:g} Pa, rho = {density_kg_m3:g} kg/m^3")
-    click.echo(f"{'n':>3}  {'lambda':>10}  {'frequency (Hz)':>15}  {'ratio':>9}")
-    for n, (lam, f) in enumerate(zip(lams, freqs), start=1):
-        click.echo(f"{n:>3}  {lam:>10.4f}  {f:>15.3f}  {f / freqs[0]:>9.4f}")
+    if cut is not None or theory == "timoshenko":
+        details = [f"width {width_m:g} m", cut.describe() if cut is not None else "uniform", theory]
+        if theory == "timoshenko":
+            details.append(f"G = {shear['shear_modulus_pa']:.4g} Pa, kappa = {shear['shear_coefficient']:.4f}")
+        click.echo("  " + ", ".join(details))
+    header = f"{'n':>3}  {'lambda':>10}  {'frequency (Hz)':>15}  {'ratio':>9}"
+    click.echo(header + (f"  {'vs E-B (cents)':>14}" if theory == "timoshenko" else ""))
+    for n, (lam, f, c) in enumerate(zip(lams, freqs, cents), start=1):
+        click.echo(f"{n:>3}  {lam:>10.4f}  {f:>15.3f}  {f / freqs[0]:>9.4f}"
+                   + (f"  {c:>14.1f}" if theory == "timoshenko" else ""))
 
 
 @main.command()
 @click.option("--json", "as_json", is_flag=True, help="Print JSON: every field of every material.")
 def materials(as_json: bool) -> None:
-    """The materials table: E, rho, typical Q, what each entry is and its source.
+    """The materials table: E, rho, shear (nu, G, E/G, kappa), typical Q, what each entry is and its source.
+
+    Isotropic materials give Poisson's ratio nu (G = E / (2 (1 + nu)), kappa Cowper's value);
+    woods give G along the grain (G_LT, quartersawn bars; kappa 5/6) and show nu as -.
 
     Any model that takes Young's modulus and density takes one by name:
     --set material=steel (see `barsynth params MODEL`).
@@ -304,14 +438,18 @@ def materials(as_json: bool) -> None:
 
     table = all_materials()
     if as_json:
-        _json_out([asdict(mat) for mat in table.values()])
+        _json_out([{**asdict(mat), "modulus_ratio": mat.modulus_ratio, "shear_coefficient": mat.shear_coefficient}
+                   for mat in table.values()])
         return
     import textwrap
 
-    click.echo(f"{'material':<16} {'E (Pa)':>9}  {'rho (kg/m^3)':>12}  {'Q':>6}")
+    click.echo(f"{'material':<17} {'E (Pa)':>9}  {'rho (kg/m^3)':>12}  {'nu':>5}  {'G (Pa)':>9}  {'E/G':>5}  "
+               f"{'kappa':>6}  {'Q':>6}")
     for name, mat in table.items():
         q = f"{mat.typical_q:g}" if mat.typical_q else "-"
-        click.echo(f"{name:<16} {mat.youngs_modulus_pa:>9.3g}  {mat.density_kg_m3:>12.0f}  {q:>6}")
+        nu = f"{mat.poisson_ratio:g}" if mat.poisson_ratio is not None else "-"
+        click.echo(f"{name:<17} {mat.youngs_modulus_pa:>9.3g}  {mat.density_kg_m3:>12.0f}  {nu:>5}  "
+                   f"{mat.shear_modulus_pa:>9.3g}  {mat.modulus_ratio:>5.1f}  {mat.shear_coefficient:>6.4f}  {q:>6}")
         click.echo(textwrap.fill(f"{mat.description.rstrip('.')}. Source: {mat.source}", 100,
                                  initial_indent=" " * 4, subsequent_indent=" " * 4, break_on_hyphens=False))
 
@@ -723,34 +861,51 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
               show_default=True, help="Shape of the undercut.")
 @click.option("--undercut-width", type=_Real(""), default=0.6, show_default=True, metavar="FRACTION",
               help="Length of the undercut, as a fraction of the bar's length.")
+@_shear_options
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, width_m, target_ratio, profile,
-                  undercut_width, as_json):
+                  undercut_width, theory, poisson_ratio, shear_modulus_pa, shear_coefficient, as_json):
     """The undercut depth that tunes a free-free bar's f2/f1, and f3/f1 there.
 
+    With --theory timoshenko the bar is tuned as it really rings (shear and rotary
+    inertia): a thick wooden bar tuned in Euler-Bernoulli rings flat of the target.
+
     \b
-    Example:
+    Examples:
       barsynth tune-undercut --material rosewood --length 0.38 --thickness 0.02 --target-ratio 4
+      barsynth tune-undercut --material rosewood --length 0.4 --thickness 0.02 --width 0.05 --theory timoshenko
     """
     from .models.fd import FD_TABLE
     from .physics.undercut import tune_undercut as tune
 
     youngs_modulus_pa, density_kg_m3 = _material_constants(material, youngs_modulus_pa, density_kg_m3)
+    shear = _shear_constants(theory, material, youngs_modulus_pa, poisson_ratio, shear_modulus_pa, shear_coefficient)
 
     bar = {name: FD_TABLE[name].validate(value) for name, value in (
         ("youngs_modulus_pa", youngs_modulus_pa), ("density_kg_m3", density_kg_m3), ("length_m", length_m),
         ("thickness_m", thickness_m), ("width_m", width_m), ("undercut_width", undercut_width))}
     cut_width = bar.pop("undercut_width")
-    tuned = tune(target_ratio=target_ratio, kind=profile, undercut_width=cut_width, **bar)
+    tuned = tune(target_ratio=target_ratio, kind=profile, undercut_width=cut_width, theory=theory,
+                 shear_modulus_pa=shear.get("shear_modulus_pa"), shear_coefficient=shear.get("shear_coefficient"),
+                 **bar)
     settings = {**bar, "profile": profile, "undercut_depth": round(tuned.profile.depth, 6), "undercut_width": cut_width}
+    fd_knows_theory = "theory" in FD_TABLE
+    if theory != "euler-bernoulli" and fd_knows_theory:
+        settings["theory"] = theory
     if as_json:
-        _json_out({**tuned.to_json(), "fd_parameters": settings})
+        _json_out({**tuned.to_json(), **({"poisson_ratio": shear["poisson_ratio"]} if shear else {}),
+                   "fd_parameters": settings})
         return
+    shown = f" (G = {shear['shear_modulus_pa']:.4g} Pa, kappa = {shear['shear_coefficient']:.4f})" if shear else ""
     click.echo(f"{profile} undercut over {cut_width:g} of the length: depth {tuned.profile.depth:.4f} of the thickness "
-               f"({tuned.profile.depth * bar['thickness_m'] * 1000:.2f} mm)")
+               f"({tuned.profile.depth * bar['thickness_m'] * 1000:.2f} mm), {theory}{shown}")
     click.echo(f"{'mode':>4} {'frequency (Hz)':>15} {'ratio':>8}")
     for n, (f, r) in enumerate(zip(tuned.frequencies_hz, tuned.ratios), start=1):
         click.echo(f"{n:>4} {f:>15.3f} {r:>8.4f}")
+    ratios = tuned.ratios
+    click.echo(f"f2/f1 = {ratios[1]:.4f}" + (f", f3/f1 = {ratios[2]:.4f}" if ratios.size > 2 else ""))
+    if theory != "euler-bernoulli" and not fd_knows_theory:
+        click.echo("note: the fd model renders Euler-Bernoulli bars: there this depth rings sharper than tuned")
     click.echo("hear it: barsynth render fd " + " ".join(f"--set {k}={_shown(v)}" for k, v in settings.items())
                + " -o tuned.wav")
 

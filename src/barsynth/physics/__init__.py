@@ -17,17 +17,20 @@ from .damping import (
 )
 from .materials import Material, material, materials
 from .modes import bar_frequencies, bending_wave_constant, mode_shape
+from .theory import THEORIES, bar_modes_hz, shear_constants
 from .timoshenko import shear_coefficient, timoshenko_frequencies
 from .timoshenko_grid import TwoFieldGrid, timoshenko_grid, timoshenko_grid_modes
 from .tuned_bar import TunedBar, tune_bar
 
 __all__ = [
     "BOUNDARY_CONDITIONS",
+    "THEORIES",
     "Material",
     "TunedBar",
     "TwoFieldGrid",
     "alpha_from_q",
     "alpha_from_t60",
+    "bar_modes_hz",
     "bar_frequencies",
     "bending_wave_constant",
     "damped_frequency",
@@ -37,6 +40,7 @@ __all__ = [
     "materials",
     "mode_shape",
     "q_from_t60",
+    "shear_constants",
     "shear_coefficient",
     "t60_from_alpha",
     "t60_from_q",

@@ -1,8 +1,14 @@
-"""Bar materials: Young's modulus, density and a typical Q.
+"""Bar materials: Young's modulus, density, shear stiffness and a typical Q.
 
 The numbers live in a data file, ``barsynth/data/materials.toml``, each entry with
-the reference it comes from (spec 1.7). Woods are given along the grain, the
+the reference it comes from (spec 1.7, 8.3). Woods are given along the grain, the
 direction that governs the bending of a bar cut lengthwise.
+
+Shear (for thick bars, spec 8.2): an isotropic material gives its Poisson ratio ``nu``
+and ``G = E / (2 (1 + nu))``; a wood, orthotropic, gives ``G`` itself (``G_LT``, between
+the grain and the thickness of a quartersawn bar; the data file says why). The shear
+coefficient of a rectangle is Cowper's, ``kappa = 10 (1 + nu) / (12 + 11 nu)`` (G. R. Cowper,
+J. Appl. Mech. 33, 1966), and 5/6 where no ``nu`` is given.
 """
 
 from __future__ import annotations
@@ -17,6 +23,9 @@ from ..checks import show_value
 from ..errors import ParameterError
 
 __all__ = ["Material", "material", "materials"]
+
+PLAIN_SHEAR_COEFFICIENT = 5.0 / 6.0
+"""The shear coefficient of a rectangle without a Poisson ratio (Timoshenko's 5/6)."""
 
 _DATA_PACKAGE = "barsynth"
 _DATA_FILE = ("data", "materials.toml")
@@ -40,6 +49,10 @@ class Material:
         What exactly the entry describes (grade, species, moisture content).
     source : str
         Where the numbers come from.
+    poisson_ratio : float or None
+        Poisson's ratio ``nu`` (dimensionless) of an isotropic material; None for a wood.
+    shear_modulus_pa : float
+        Shear modulus ``G`` in Pa: as given for a wood (``G_LT``), else ``E / (2 (1 + nu))``.
     """
 
     name: str
@@ -48,6 +61,33 @@ class Material:
     typical_q: float | None
     description: str
     source: str
+    poisson_ratio: float | None
+    shear_modulus_pa: float
+
+    @property
+    def isotropic(self) -> bool:
+        """True when the shear modulus follows from ``nu`` (metals, plastics, glass)."""
+        return self.poisson_ratio is not None
+
+    @property
+    def shear_coefficient(self) -> float:
+        """Cowper's shear coefficient of a rectangle from ``nu``; 5/6 where only ``G`` is given.
+
+        Examples
+        --------
+        >>> round(material("aluminium").shear_coefficient, 4), round(material("rosewood").shear_coefficient, 4)
+        (0.8509, 0.8333)
+        """
+        from .timoshenko import shear_coefficient
+
+        if self.poisson_ratio is None:
+            return PLAIN_SHEAR_COEFFICIENT
+        return shear_coefficient(self.poisson_ratio)
+
+    @property
+    def modulus_ratio(self) -> float:
+        """``E / G`` (dimensionless): about 2.6 for metals, 10-20 for woods along the grain."""
+        return self.youngs_modulus_pa / self.shear_modulus_pa
 
 
 def _positive_number(name: str, key: str, value: object) -> float:
@@ -66,15 +106,26 @@ def _load() -> dict[str, Material]:
     out: dict[str, Material] = {}
     for name, entry in table.items():
         q = entry.get("typical_q")
-        e = entry["youngs_modulus_pa"]
+        e = _positive_number(name, "youngs_modulus_pa", entry["youngs_modulus_pa"])
         rho = entry["density_kg_m3"]
+        nu, g = entry.get("poisson_ratio"), entry.get("shear_modulus_pa")
+        if (nu is None) == (g is None):
+            raise ValueError(f"materials.toml: [{name}] gives {'both' if nu is not None else 'neither'} "
+                             "poisson_ratio and shear_modulus_pa; give exactly one")
+        if nu is not None:
+            nu = _positive_number(name, "poisson_ratio", nu)
+            if nu >= 0.5:
+                raise ValueError(f"materials.toml: [{name}] poisson_ratio = {nu!r} must be < 0.5")
+            g = e / (2.0 * (1.0 + nu))
         out[name] = Material(
             name=name,
-            youngs_modulus_pa=_positive_number(name, "youngs_modulus_pa", e),
+            youngs_modulus_pa=e,
             density_kg_m3=_positive_number(name, "density_kg_m3", rho),
             typical_q=None if q is None else _positive_number(name, "typical_q", q),
             description=str(entry["description"]),
             source=str(entry["source"]),
+            poisson_ratio=nu,
+            shear_modulus_pa=_positive_number(name, "shear_modulus_pa", g),
         )
     return out
 
