@@ -67,23 +67,15 @@ ASSUMED_POISSON_RATIO = 0.33
 
 
 def material_shear(name: str) -> tuple[float, float]:
-    """The shear modulus ``G`` (Pa) and shear coefficient ``kappa`` of material ``name``: the
-    entry's own where it gives them, else those of an isotropic solid with
-    :data:`ASSUMED_POISSON_RATIO` (``G = E / (2 (1 + nu))``, Cowper's ``kappa``)."""
+    """The shear modulus ``G`` (Pa) and shear coefficient ``kappa`` of material ``name``, as its
+    entry in the materials table gives them (every entry has both, spec 8.3)."""
     from ..physics.materials import material
 
     m = material(name)
-    g = getattr(m, "shear_modulus_pa", None)
-    kappa = getattr(m, "shear_coefficient", None)
-    nu = ASSUMED_POISSON_RATIO
-    if g is None:
-        g = m.youngs_modulus_pa / (2.0 * (1.0 + nu))
-    if kappa is None:
-        kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu)  # Cowper (1966), a rectangle
-    return float(g), float(kappa)
+    return float(m.shear_modulus_pa), float(m.shear_coefficient)
 
 
-THEORIES = ("euler-bernoulli", "timoshenko")
+THEORIES = ("euler-bernoulli", "timoshenko")  # physics.theory.THEORIES (not imported: it loads NumPy)
 TIMOSHENKO = {"theory": ("timoshenko",)}
 
 
