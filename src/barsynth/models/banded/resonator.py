@@ -55,7 +55,7 @@ def resonator_parameters(max_modes: int) -> list[Parameter]:
         Parameter("tube_position", "", 0.0, 1.0, 0.5,
                   "tube = on: where along the bar the tube's mouth is (fraction of the length): its drive is the "
                   "bar's velocity there", when=TUBE_ON),
-        Parameter("tube_gain_db", "dB", -40.0, 30.0, 0.0,
+        Parameter("tube_gain_db", "dB", -40.0, 30.0, 6.0,
                   "tube = on: the tube's sound at its resonance re the bar's velocity at its mouth", when=TUBE_ON),
         Parameter("tube_damping", "", 0.0, 10.0, 0.5,
                   "tube = on: the tuned mode's extra damping by the tube, as a multiple of its own (its T60 / "
