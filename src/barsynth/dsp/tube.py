@@ -156,7 +156,7 @@ def design_tube(frequency_hz: float, radius_m: float, sample_rate: float, *,
     --------
     >>> tube = design_tube(220.0, 0.025, 48000.0)
     >>> round(tube.frequency_hz, 6), round(tube.length_m, 3), round(tube.t60_s, 2)
-    (220.0, 0.375, 0.9)
+    (220.0, 0.374, 0.85)
     """
     if not 0.0 < frequency_hz < sample_rate / 8.0:
         raise ValueError(f"no tube at {frequency_hz} Hz for a sample rate of {sample_rate} Hz")

@@ -163,6 +163,8 @@ class BandedVoice(Voice):
         if p.damper != old.damper:
             self._press(1.0 if p.damper == "down" else 0.0)
         self._set_gains(self._stroke.now)
+        if bank.tube is None and self._tube_running and np.array_equal(bank.modes, previous.modes):
+            bank.loops["mouth"] = previous.loops["mouth"]  # a tube switched off: still driven while it glides out
         if bank.tube is not None and not self._tube_running:  # (a tube gone silent starts empty)
             self._tube_state[:] = 0.0
             self._tube_line[:] = 0.0
