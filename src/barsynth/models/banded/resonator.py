@@ -45,23 +45,23 @@ def resonator_parameters(max_modes: int) -> list[Parameter]:
         Parameter("tube", "", None, None, "none",
                   "a resonator tube under the bar (closed at the bottom, open at the top, its first resonance on "
                   "mode tube_mode): none or on", kind=CHOICE, choices=("none", "on")),
-        Parameter("tube_mode", "", 1, max_modes, 1, "tube = on: the mode (in order) the tube is tuned to", kind=INT,
+        Parameter("tube_mode", "", 1, max_modes, 1, "the mode (in order) the tube is tuned to", kind=INT,
                   when=TUBE_ON),
         Parameter("tube_radius_m", "m", 0.005, 0.1, 0.025,
-                  "tube = on: inner radius a (radiation and wall losses; length = c / 4f - ~0.6 a)", scale="log",
+                  "inner radius a (radiation and wall losses; length = c / 4f - ~0.6 a)", scale="log",
                   when=TUBE_ON),
         Parameter("tube_detune_cents", "cents", -100.0, 100.0, 0.0,
-                  "tube = on: the tube's resonance re its mode", when=TUBE_ON),
+                  "the tube's resonance re its mode", when=TUBE_ON),
         Parameter("tube_position", "", 0.0, 1.0, 0.5,
-                  "tube = on: where along the bar the tube's mouth is (fraction of the length): its drive is the "
+                  "where along the bar the tube's mouth is (fraction of the length): its drive is the "
                   "bar's velocity there", when=TUBE_ON),
         Parameter("tube_gain_db", "dB", -40.0, 30.0, 6.0,
-                  "tube = on: the tube's sound at its resonance re the bar's velocity at its mouth", when=TUBE_ON),
+                  "the tube's sound at its resonance re the bar's velocity at its mouth", when=TUBE_ON),
         Parameter("tube_damping", "", 0.0, 10.0, 0.5,
-                  "tube = on: the tuned mode's extra damping by the tube, as a multiple of its own (its T60 / "
+                  "the tuned mode's extra damping by the tube, as a multiple of its own (its T60 / "
                   "(1 + tube_damping)): the energy the tube radiates is the bar's", when=TUBE_ON),
         Parameter("motor_rate_hz", "Hz", 0.0, 12.0, 0.0,
-                  "tube = on: the vibraphone's motor, turning discs in the tube's top (tremolo rate; 0: off)",
+                  "the vibraphone's motor, turning discs in the tube's top (tremolo rate; 0: off)",
                   when=TUBE_ON),
         Parameter("motor_depth", "", 0.0, 1.0, 0.5,
                   "how far the discs close the tube (0: not at all, 1: silent when closed)", when=MOTOR_ON),
