@@ -44,6 +44,8 @@ EXTRA_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
         "bow": {"excitation": "bow", "bow_duration_s": 0.2},
         "pluck": {"excitation": "pluck", "strike_position": 0.3},
         "ring": {"tuning": "ratios", "shape": "ring", "mode_ratios": (1.0, 2.7, 5.1), "mode_t60s_s": (1.0, 0.5)},
+        "geometry-eb": {"tuning": "geometry", "theory": "euler-bernoulli", "profile": "circular",
+                        "undercut_depth": 0.4, "material": "maple"},
     },
     "allpass": {
         "pluck": {"excitation": "pluck", "strike_position": 0.3},

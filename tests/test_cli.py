@@ -783,10 +783,10 @@ def test_a_parameter_without_effect_gets_one_warning_and_still_renders(tmp_path)
                     'mallet_hardness = 0.2\n')
     r = run("describe", "banded", "--preset", str(mine))
     assert r.exit_code == 0  # (an instrument's settings for another excitation are not warned about)
-    assert r.stderr == "barsynth: warning: length_m has no effect unless tuning = physics\n"
+    assert r.stderr == "barsynth: warning: length_m has no effect unless tuning = physics or geometry\n"
     r = run("describe", "banded", "--preset", str(mine), "--set", "mallet_hardness=0.3", "--set", "excitation=bow")
-    assert r.stderr == ("barsynth: warning: length_m has no effect unless tuning = physics\n"  # a --set is warned
-                        "barsynth: warning: mallet_hardness has no effect unless excitation = strike\n")
+    assert r.stderr == ("barsynth: warning: length_m has no effect unless tuning = physics or geometry\n"
+                        "barsynth: warning: mallet_hardness has no effect unless excitation = strike\n")  # --set warned
 
 
 @pytest.mark.parametrize("model_name,args,warning", [
@@ -794,8 +794,8 @@ def test_a_parameter_without_effect_gets_one_warning_and_still_renders(tmp_path)
     ("twang", ["--set", "short_cantilever_gain=0", "--set", "short_length_ratio=0.5"],
      "short_length_ratio has no effect unless short_cantilever_gain > 0"),
     ("banded", ["--set", "mode_count=2", "--set", "mode_t60s_s=1,0.5", "--set", "q=50"],
-     "q has no effect unless tuning = physics and mode_t60s_s has fewer values than mode_count, or tuning = "
-     "ratios and mode_t60s_s has fewer values than mode_ratios"),
+     "q has no effect unless tuning = physics or geometry and mode_t60s_s has fewer values than mode_count, "
+     "or tuning = ratios and mode_t60s_s has fewer values than mode_ratios"),
     ("fd", ["--set", "profile=parabolic", "--set", "undercut_width=0.4"],
      "undercut_width has no effect unless profile = parabolic or circular and undercut_depth > 0"),
 ])

@@ -34,6 +34,8 @@ MODULES = [
     "barsynth.physics.grid",
     "barsynth.physics.profiles",
     "barsynth.physics.undercut",
+    "barsynth.physics.timoshenko",
+    "barsynth.physics.timoshenko_grid",
     "barsynth.dsp.bow_stroke",
     "barsynth.analysis.bowing",
     "barsynth.studio.presets_file",

@@ -301,8 +301,10 @@ def test_a_material_row_tells_the_page_what_each_choice_sets():
 
     row = next(r for r in get_model("banded").table.to_json() if r["name"] == "material")
     steel = material("steel")
-    assert row["sets"]["names"] == ["youngs_modulus_pa", "density_kg_m3"]
-    assert row["sets"]["values"]["steel"] == [steel.youngs_modulus_pa, steel.density_kg_m3]
+    from barsynth.models.rows import material_shear
+
+    assert row["sets"]["names"] == ["youngs_modulus_pa", "density_kg_m3", "shear_modulus_pa", "shear_coefficient"]
+    assert row["sets"]["values"]["steel"] == [steel.youngs_modulus_pa, steel.density_kg_m3, *material_shear("steel")]
     assert "custom" not in row["sets"]["values"]
 
 

@@ -52,7 +52,8 @@ def _cases():
             yield "fd", {"bc": bc, "excitation": excitation, "pickup_position": PICKUP, "points": 20,
                          "oversampling": 1}
     for tuning in ({"tuning": "physics"}, {"tuning": "ratios", "shape": "ring"},
-                   {"tuning": "ratios", "shape": "bar", "mode_ratios": (1.0,)}):
+                   {"tuning": "ratios", "shape": "bar", "mode_ratios": (1.0,)},
+                   {"tuning": "geometry", "profile": "parabolic", "undercut_depth": 0.5}):
         for excitation in ("strike", "pluck", "bow"):
             yield "banded", {**tuning, "excitation": excitation, "pickup_position": PICKUP}
 

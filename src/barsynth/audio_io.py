@@ -39,29 +39,47 @@ def load_audio(path: str | os.PathLike[str]) -> tuple[Any, float]:
     naming the file) when the file is missing, unreadable, empty or of a kind
     libsndfile does not know (that last: :class:`~barsynth.errors.AudioFormatError`).
     """
-    import numpy as np
     import soundfile
 
     name = os.fspath(path)
-    if not os.path.exists(name):
-        raise AudioFileError(f"audio file {show_text(name)}: no such file")
-    if os.path.isdir(name):
-        raise AudioFileError(f"audio file {show_text(name)}: is a directory, not a sound file")
-    if not stat.S_ISREG(os.stat(name).st_mode):  # a FIFO or device would block or never end
-        raise AudioFileError(f"audio file {show_text(name)}: is not a regular file")
+    check_sound_path(name)
     try:
         data, rate = soundfile.read(name, dtype="float64", always_2d=True)
-    except (RuntimeError, soundfile.SoundFileError, OSError, ValueError) as exc:
-        reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise AudioFormatError(
-            f"audio file {show_text(name)}: cannot be read as WAV, FLAC or OGG ({reason})"
-        ) from None
+    except decode_errors() as exc:
+        raise unreadable(name, exc) from None
     if data.shape[0] == 0:
         raise AudioFileError(f"audio file {show_text(name)}: contains no samples")
     _check_rate(name, rate)
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0].copy()
     _check_finite(name, mono)
     return mono, float(rate)
+
+
+def check_sound_path(name: str, *, allow_empty: bool = True) -> None:
+    """Refuse, in one line naming the file, a path that is missing, a directory, not a regular
+    file (a FIFO or device would block or never end) or, unless ``allow_empty``, empty."""
+    if not os.path.exists(name):
+        raise AudioFileError(f"audio file {show_text(name)}: no such file")
+    if os.path.isdir(name):
+        raise AudioFileError(f"audio file {show_text(name)}: is a directory, not a sound file")
+    if not stat.S_ISREG(os.stat(name).st_mode):
+        raise AudioFileError(f"audio file {show_text(name)}: is not a regular file")
+    if not allow_empty and os.path.getsize(name) == 0:
+        raise AudioFileError(f"audio file {show_text(name)}: is empty (0 bytes)")
+
+
+def decode_errors() -> tuple[type[BaseException], ...]:
+    """What libsndfile's reader raises for a file it cannot decode (soundfile is imported only
+    when a file is read: it costs start-up time)."""
+    import soundfile
+
+    return (RuntimeError, soundfile.SoundFileError, OSError, ValueError)
+
+
+def unreadable(name: str, exc: BaseException) -> AudioFormatError:
+    """The one-line error for a file libsndfile cannot decode, with its reason."""
+    reason = " ".join(str(getattr(exc, "error_string", None) or exc).split()) or type(exc).__name__
+    return AudioFormatError(f"audio file {show_text(name)}: cannot be read as WAV, FLAC or OGG ({reason})")
 
 
 READ_BLOCK_VALUES = 1 << 20  # samples (all channels) decoded at a time by audio_from_bytes

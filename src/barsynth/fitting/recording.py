@@ -14,14 +14,13 @@ does (the same one-line errors for a missing, unreadable, empty or non-finite fi
 from __future__ import annotations
 
 import os
-import stat
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..audio_io import _check_finite, _check_rate
+from ..audio_io import _check_finite, _check_rate, check_sound_path, decode_errors, unreadable
 from ..checks import show_text
-from ..errors import AudioFileError, AudioFormatError
+from ..errors import AudioFileError
 
 __all__ = ["MAX_RECORDING_S", "Recording", "read_recording"]
 
@@ -64,19 +63,11 @@ def read_recording(path: str | os.PathLike[str], *, max_seconds: float = MAX_REC
 
     name = os.fspath(path)
     shown = show_text(name)
-    if not os.path.exists(name):
-        raise AudioFileError(f"audio file {shown}: no such file")
-    if os.path.isdir(name):
-        raise AudioFileError(f"audio file {shown}: is a directory, not a sound file")
-    if not stat.S_ISREG(os.stat(name).st_mode):
-        raise AudioFileError(f"audio file {shown}: is not a regular file")
-    if os.path.getsize(name) == 0:
-        raise AudioFileError(f"audio file {shown}: is empty (0 bytes)")
+    check_sound_path(name, allow_empty=False)
     try:
         sound = soundfile.SoundFile(name)
-    except (RuntimeError, soundfile.SoundFileError, OSError, ValueError) as exc:
-        reason = " ".join(str(getattr(exc, "error_string", None) or exc).split()) or type(exc).__name__
-        raise AudioFormatError(f"audio file {shown}: cannot be read as WAV, FLAC or OGG ({reason})") from None
+    except decode_errors() as exc:
+        raise unreadable(name, exc) from None
     warnings = []
     with sound:
         rate = float(sound.samplerate)
@@ -85,8 +76,8 @@ def read_recording(path: str | os.PathLike[str], *, max_seconds: float = MAX_REC
         try:
             data = sound.read(most, dtype="float64", always_2d=True)
             more = sound.read(1, dtype="float64", always_2d=True).shape[0] > 0 if data.shape[0] == most else False
-        except (RuntimeError, soundfile.SoundFileError, ValueError) as exc:
-            raise AudioFormatError(f"audio file {shown}: cannot be read as WAV, FLAC or OGG ({exc})") from None
+        except decode_errors() as exc:
+            raise unreadable(name, exc) from None
         frames = sound.frames if sound.seekable() and sound.frames > 0 else data.shape[0] + int(more)
     if data.shape[0] == 0:
         raise AudioFileError(f"audio file {shown}: contains no samples")

@@ -8,19 +8,20 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from ..parameters import CHOICE, Parameter, Sets
+from ..parameters import CHOICE, FLOATS, Compare, Parameter, Sets
 
 if TYPE_CHECKING:
     from ..exciters import Exciter
 
 
-def bar_size_parameters(note: str = "", when: Any = ()) -> list[Parameter]:
+def bar_size_parameters(note: str = "", when: Any = (), shear: bool = False) -> list[Parameter]:
     """Material and size of a rectangular bar; ``note`` prefixes each doc (e.g. when it applies)
-    and ``when`` says when they act (see :class:`~barsynth.parameters.Parameter`)."""
+    and ``when`` says when they act (see :class:`~barsynth.parameters.Parameter`). With ``shear``
+    the material also sets the rows of :func:`theory_parameters` (which the table must have)."""
     return [
         Parameter("youngs_modulus_pa", "Pa", 1e8, 4e11, 69e9, f"{note}Young's modulus E", scale="log", when=when),
         Parameter("density_kg_m3", "kg/m^3", 100.0, 22000.0, 2700.0, f"{note}density rho", scale="log", when=when),
-        material_parameter(note, when),
+        material_parameter(note, when, shear=shear),
         Parameter("length_m", "m", 0.02, 3.0, 0.30, f"{note}length of the bar", scale="log", when=when),
         Parameter("thickness_m", "m", 0.0003, 0.1, 0.01, f"{note}thickness h (bending direction)", scale="log",
                   when=when),
@@ -42,17 +43,106 @@ def level_parameter() -> Parameter:
     return Parameter("level_db", "dB", -60.0, 40.0, 0.0, "output gain re the pick-up velocity in m/s")
 
 
-def material_parameter(note: str = "", when: Any = ()) -> Parameter:
+def material_parameter(note: str = "", when: Any = (), shear: bool = False) -> Parameter:
     """``material``: a name from the materials table that sets ``youngs_modulus_pa`` and
-    ``density_kg_m3`` (``custom``: those two as given)."""
+    ``density_kg_m3`` (``custom``: those two as given); with ``shear`` also ``shear_modulus_pa``
+    and ``shear_coefficient`` (:func:`material_shear`)."""
     from ..physics.materials import material, materials
 
-    def lookup(name: str) -> tuple[float, float]:
+    def lookup(name: str) -> tuple[float, ...]:
         m = material(name)
-        return m.youngs_modulus_pa, m.density_kg_m3
+        return (m.youngs_modulus_pa, m.density_kg_m3, *(material_shear(name) if shear else ()))
 
+    names = ("youngs_modulus_pa", "density_kg_m3", *(("shear_modulus_pa", "shear_coefficient") if shear else ()))
+    sets_text = ", ".join(names[:-1]) + " and " + names[-1]
     return Parameter("material", "", None, None, "custom",
-                     f"{note}a material from the materials table (barsynth materials): sets youngs_modulus_pa "
-                     "and density_kg_m3; custom keeps those as given",
-                     kind=CHOICE, choices=("custom", *materials()), when=when,
-                     sets=Sets(("youngs_modulus_pa", "density_kg_m3"), lookup))
+                     f"{note}a material from the materials table (barsynth materials): sets {sets_text}; "
+                     "custom keeps those as given",
+                     kind=CHOICE, choices=("custom", *materials()), when=when, sets=Sets(names, lookup))
+
+
+ASSUMED_POISSON_RATIO = 0.33
+"""The Poisson ratio taken where no shear stiffness is given (a material's entry without one, a
+``shear_modulus_pa`` of 0)."""
+
+
+def material_shear(name: str) -> tuple[float, float]:
+    """The shear modulus ``G`` (Pa) and shear coefficient ``kappa`` of material ``name``: the
+    entry's own where it gives them, else those of an isotropic solid with
+    :data:`ASSUMED_POISSON_RATIO` (``G = E / (2 (1 + nu))``, Cowper's ``kappa``)."""
+    from ..physics.materials import material
+
+    m = material(name)
+    g = getattr(m, "shear_modulus_pa", None)
+    kappa = getattr(m, "shear_coefficient", None)
+    nu = ASSUMED_POISSON_RATIO
+    if g is None:
+        g = m.youngs_modulus_pa / (2.0 * (1.0 + nu))
+    if kappa is None:
+        kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu)  # Cowper (1966), a rectangle
+    return float(g), float(kappa)
+
+
+THEORIES = ("euler-bernoulli", "timoshenko")
+TIMOSHENKO = {"theory": ("timoshenko",)}
+
+
+def theory_parameters(note: str = "", when: Any = (), default: str = "euler-bernoulli") -> list[Parameter]:
+    """``theory`` (Euler–Bernoulli or Timoshenko, spec 8.2) and the shear stiffness the thick bar
+    needs (acting only with ``theory = timoshenko``); a ``material`` made with ``shear`` sets them.
+    ``note`` prefixes each doc, ``when`` (one clause) says when the theory acts at all, ``default``
+    is the theory's default."""
+    thick = {**(when or {}), **TIMOSHENKO}
+    return [
+        Parameter("theory", "", None, None, default,
+                  f"{note}the bar's physics: euler-bernoulli (thin: bending only) or timoshenko (thick: shear and "
+                  "rotary inertia lower the high modes)", kind=CHOICE, choices=THEORIES, when=when),
+        Parameter("shear_modulus_pa", "Pa", 0.0, 4e11, 0.0,
+                  f"{note}shear modulus G (a wood's across the grain, G_LT); a material sets it; 0: an isotropic "
+                  "solid's, E / (2 (1 + 0.33))", when=thick),
+        Parameter("shear_coefficient", "", 0.5, 1.0, 5.0 / 6.0,
+                  f"{note}the cross-section's shear coefficient kappa: 5/6 for a rectangle, Cowper's "
+                  "10 (1 + nu) / (12 + 11 nu) for an isotropic one (a material sets it)", when=thick),
+    ]
+
+
+def shear_of(p: Any) -> tuple[float, float]:
+    """The shear modulus (Pa) and shear coefficient of a Timoshenko bar's record ``p`` (rows of
+    :func:`theory_parameters`): as given or as its material set them; a shear modulus of 0 is an
+    isotropic solid's with :data:`ASSUMED_POISSON_RATIO`."""
+    g = p.shear_modulus_pa or p.youngs_modulus_pa / (2.0 * (1.0 + ASSUMED_POISSON_RATIO))
+    return float(g), float(p.shear_coefficient)
+
+
+def profile_parameters(note: str = "", when: Any = ()) -> list[Parameter]:
+    """A bar's thickness profile (:class:`~barsynth.physics.profiles.Profile`): ``profile``,
+    ``undercut_depth``, ``undercut_width`` and ``profile_samples``; ``note`` prefixes each doc and
+    ``when`` (one clause, or a list of them) says when the profile acts at all."""
+    from ..physics.profiles import PROFILE_KINDS, THINNEST
+
+    def acting(clause: dict[str, Any]) -> list[dict[str, Any]]:
+        clauses = [when] if isinstance(when, dict) else list(when)
+        return [{**outer, **clause} for outer in clauses] if clauses else [clause] if clause else []
+
+    undercut = {"profile": ("parabolic", "circular")}
+    return [
+        Parameter("profile", "", None, None, "uniform",
+                  f"{note}thickness along the bar: uniform, parabolic or circular (an undercut at the middle), or "
+                  "samples (profile_samples)", kind=CHOICE, choices=PROFILE_KINDS, when=acting({})),
+        Parameter("undercut_depth", "", 0.0, 1.0 - THINNEST, 0.0,
+                  f"{note}profile = parabolic or circular: depth of the undercut at the middle, fraction of the "
+                  "thickness", when=acting(undercut)),
+        Parameter("undercut_width", "", 0.05, 1.0, 0.6,
+                  f"{note}profile = parabolic or circular: length of the undercut, fraction of the bar's length",
+                  when=acting({**undercut, "undercut_depth": Compare(">", 0.0)})),
+        Parameter("profile_samples", "", THINNEST, 1.0, (),
+                  f"{note}profile = samples: thickness / thickness_m at equally spaced points from end to end",
+                  kind=FLOATS, max_items=64, when=acting({"profile": ("samples",)})),
+    ]
+
+
+def profile_of(p: Any):
+    """The :class:`~barsynth.physics.profiles.Profile` of a record with :func:`profile_parameters`."""
+    from ..physics.profiles import Profile
+
+    return Profile(p.profile, depth=p.undercut_depth, width=p.undercut_width, samples=tuple(p.profile_samples))

@@ -17,6 +17,7 @@ from .damping import (
 )
 from .materials import Material, material, materials
 from .modes import bar_frequencies, bending_wave_constant, mode_shape
+from .timoshenko import shear_coefficient, timoshenko_frequencies
 from .timoshenko_grid import TwoFieldGrid, timoshenko_grid, timoshenko_grid_modes
 from .tuned_bar import TunedBar, tune_bar
 
@@ -36,8 +37,10 @@ __all__ = [
     "materials",
     "mode_shape",
     "q_from_t60",
+    "shear_coefficient",
     "t60_from_alpha",
     "t60_from_q",
+    "timoshenko_frequencies",
     "timoshenko_grid",
     "timoshenko_grid_modes",
     "tune_bar",

@@ -169,10 +169,16 @@ def two_field_eigen(grid: TwoFieldGrid, count: int) -> tuple[np.ndarray, np.ndar
     Solved as the largest eigenvalues ``1 / w^2`` of ``M v = mu K v`` (dense LAPACK, Cholesky of
     ``K``): a thin bar's shear stiffness makes ``M^-1/2 K M^-1/2`` span ``(L / h)^4`` in scale, and
     its standard form lost the lowest modes' digits (a cantilever with h/L = 0.001 was 2.7e-4 off;
-    this way 2e-7). A free-free bar's ``K`` is first shifted by ``s M``, ``s`` far below the first
-    mode, so its rigid motions come out on top (``mu = 1 / s``) and are dropped.
+    this way 2e-7). A free-free bar's ``K`` is first shifted by ``s M`` with ``s`` near the
+    first mode's ``omega^2`` (:func:`_first_mode_estimate`), so its rigid motions come out on top
+    (``mu = 1 / s``) and are dropped: the solve's error in ``mu`` is about ``eps / s``, so a shift
+    far below the first mode cost the higher modes their digits (``(2 pi 0.01 Hz)^2`` put a
+    rosewood bar's eighth mode 1e-4 off) and one near it costs none. Should ``K + s M`` have no
+    Cholesky factor all the same, the bar is solved on the complement of its rigid motions ``R``:
+    with ``Q`` an orthonormal basis of the ``v`` with ``R^T M v = 0`` (from the QR of ``M R``),
+    ``Q^T M Q y = mu Q^T K Q y``, ``v = Q y``.
     """
-    from scipy.linalg import eigh
+    from scipy.linalg import LinAlgError, eigh, qr
 
     skip = rigid_mode_count(grid.bc)
     size = grid.mass.size
@@ -181,15 +187,38 @@ def two_field_eigen(grid: TwoFieldGrid, count: int) -> tuple[np.ndarray, np.ndar
                              f"for a grid of {grid.points} points")
     stiffness, shift = grid.stiffness, 0.0
     if skip:
-        # a shift far below the first mode: the smallest nonzero Rayleigh quotient is above
-        # (2 pi x 0.1 Hz)^2 for any bar barsynth takes, and a tiny shift costs no digits
-        shift = (2.0 * math.pi * 0.01) ** 2
+        shift = _first_mode_estimate(grid)
         stiffness = stiffness + shift * np.diag(grid.mass)
-    values, vectors = eigh(np.diag(grid.mass), stiffness, subset_by_index=(size - count - skip, size - 1))
-    values, vectors = values[::-1][skip:], vectors[:, ::-1][:, skip:]
+    try:
+        values, vectors = eigh(np.diag(grid.mass), stiffness, subset_by_index=(size - count - skip, size - 1))
+        values, vectors = values[::-1][skip:], vectors[:, ::-1][:, skip:]
+    except LinAlgError:
+        if not skip:
+            raise
+        shift = 0.0
+        basis = qr(np.array(grid.rigid_motions()).T * grid.mass[:, None])[0][:, skip:]  # M R's complement
+        inner = size - skip
+        values, vectors = eigh(basis.T @ np.diag(grid.mass) @ basis, basis.T @ grid.stiffness @ basis,
+                               subset_by_index=(inner - count, inner - 1))
+        values, vectors = values[::-1], basis @ vectors[:, ::-1]
     omega = np.sqrt(np.maximum(1.0 / values - shift, 0.0))
     norms = np.sqrt(np.einsum("in,i,in->n", vectors, grid.mass, vectors))
     return omega, vectors / norms
+
+
+def _first_mode_estimate(grid: TwoFieldGrid) -> float:
+    """An upper estimate of a free-free grid's lowest ``omega^2`` (rad^2/s^2), within a small
+    factor of it: the Rayleigh quotient of ``w = cos(2 pi x / L)``, ``theta = w'`` with the rigid
+    motions taken out."""
+    x = np.zeros(grid.mass.size)
+    x[grid.w_index] = grid.x_m / grid.length_m
+    between = np.ones(grid.mass.size, dtype=bool)
+    between[grid.w_index] = False
+    x[between] = 0.5 * (x[np.flatnonzero(between) - 1] + x[np.flatnonzero(between) + 1])
+    trial = np.where(between, -2.0 * math.pi / grid.length_m * np.sin(2.0 * math.pi * x), np.cos(2.0 * math.pi * x))
+    for motion in grid.rigid_motions():
+        trial -= motion * np.sum(grid.mass * motion * trial) / np.sum(grid.mass * motion * motion)
+    return float(trial @ grid.stiffness @ trial / np.sum(grid.mass * trial * trial))
 
 
 def timoshenko_grid_modes(*, youngs_modulus_pa: float, density_kg_m3: float, shear_modulus_pa: float,
@@ -207,7 +236,7 @@ def timoshenko_grid_modes(*, youngs_modulus_pa: float, density_kg_m3: float, she
     ...                           shear_coefficient=5 / 6, length_m=0.4, thickness_m=0.02, bc="free-free",
     ...                           count=3)
     >>> (f / f[0]).round(3).tolist()  # Euler–Bernoulli: 1, 2.757, 5.404
-    [1.0, 2.687, 5.079]
+    [1.0, 2.599, 4.714]
     """
     count = check_whole("count", count, "modes", minimum=1)
     if extrapolate and not MIN_POINTS <= points <= MAX_EXTRAPOLATED_POINTS:

@@ -4,8 +4,10 @@ Source: G. Essl and P. R. Cook, "Banded waveguides: towards physical modeling of
 bowed bar percussion instruments", Proc. ICMC 1999 (barsynth spec 3.1).
 
 The modes (:func:`mode_table`) come from physics (``tuning = physics``: a uniform
-free-free bar) or from a fundamental and ratios; positions enter through mode shapes
-(:func:`mode_shapes`: the uniform free-free bar's; with ratios, those of a free-free bar
+free-free bar), from a bar's geometry (``tuning = geometry``: material, size, thickness
+profile and theory, :mod:`.geometry`) or from a fundamental and ratios; positions enter
+through mode shapes (:func:`mode_shapes`: the uniform free-free bar's; the profiled bar's
+own; with ratios, those of a free-free bar
 tuned to them by its thickness profile (:func:`barsynth.physics.tuned_bar.tune_bar`),
 ``cos(n 2 pi x)`` around a ring, or none at all). Each mode's output has its own gain
 (:func:`mode_gains`, ``mode_gains_db``).
@@ -44,6 +46,7 @@ from ...errors import ParameterError
 from ...exciters import POSITIONS_ALONG, StaticPoint, largest_deflection
 from ...physics import bar_frequencies, mode_shape
 from ...physics.tuned_bar import TOLERANCE_CENTS, tune_bar
+from .geometry import closed_form, geometry_bar
 from .kernel import LOOP
 from .resonator import TubeCoupling, check_tube_mode, design_coupling, tube_t60s
 from .table import MAX_MODES, MIN_Q, BandedParams
@@ -154,12 +157,16 @@ def mode_shapes(p: BandedParams, count: int, position: Any) -> np.ndarray:
     circumference), normalised to a mean square of 1; for an array of positions, modes x
     positions.
 
-    ``tuning = physics``: the uniform free-free bar's bending shapes. ``tuning = ratios``:
+    ``tuning = physics``: the uniform free-free bar's bending shapes; ``tuning = geometry``: those
+    of the bar of that profile in that theory (:func:`~.geometry.geometry_bar`; a uniform
+    Euler–Bernoulli bar's are physics'). ``tuning = ratios``:
     ``shape = bar``, those of the free-free bar whose thickness profile puts its modes at
     ``mode_ratios`` (:func:`tuned_bar_for`; the mode of each ratio is the bar's mode of the
     same rank); ``ring``, ``cos(n 2 pi x)`` with n = 2, 3, ...; ``none``, 1 everywhere."""
-    if p.tuning == "physics":
+    if p.tuning == "physics" or (p.tuning == "geometry" and closed_form(p)):
         return np.array([mode_shape("free-free", n, position) for n in range(1, count + 1)], dtype=float)
+    if p.tuning == "geometry":
+        return geometry_bar(p).shapes_at(position)
     if p.shape == "none":
         return np.ones((count, *np.shape(position)))
     if p.shape == "bar":
@@ -200,7 +207,10 @@ def mode_table(p: BandedParams) -> tuple[np.ndarray, np.ndarray, float]:
     """Frequencies (Hz), T60s (s) and mass (kg) of all the object's modes (which of them sound
     at a sample rate: :func:`playable`). Raises :class:`ParameterError` for an object that
     cannot ring (no ratios, more T60s than modes, a T60 below Q = ``MIN_Q``)."""
-    if p.tuning == "physics":
+    if p.tuning == "geometry" and not closed_form(p):
+        bar = geometry_bar(p)
+        freqs, mass = bar.frequencies_hz, bar.mass_kg
+    elif p.tuning != "ratios":  # physics, or geometry's uniform Euler-Bernoulli bar
         freqs = bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
                                 length_m=p.length_m, thickness_m=p.thickness_m, bc="free-free",
                                 count=p.mode_count)

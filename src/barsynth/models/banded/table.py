@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from ...exciters import Bow, Pluck, Sample, Strike
 from ...parameters import CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
-from ..rows import bar_size_parameters, excitation_parameter, level_parameter
+from ..rows import bar_size_parameters, excitation_parameter, level_parameter, profile_parameters, theory_parameters
 from .resonator import resonator_parameters
 
 MAX_MODES = 24
@@ -21,10 +21,13 @@ MIN_Q = 3.0
 
 PHYSICS = {"tuning": ("physics",)}
 RATIOS = {"tuning": ("ratios",)}
-SOME_MODE_WITHOUT_T60 = [{**PHYSICS, "mode_t60s_s": Compare("<", "mode_count", count=True)},
+GEOMETRY = {"tuning": ("geometry",)}
+A_BAR = {"tuning": ("physics", "geometry")}
+"""Where the modes come from a bar's material and size (physics: uniform; geometry: any profile)."""
+SOME_MODE_WITHOUT_T60 = [{**A_BAR, "mode_t60s_s": Compare("<", "mode_count", count=True)},
                          {**RATIOS, "mode_t60s_s": Compare("<", "mode_ratios", count=True)}]
 """When ``q`` acts: while some mode has no T60 of its own in ``mode_t60s_s`` (design.mode_table)."""
-SHAPED = [PHYSICS, {"shape": ("bar", "ring")}]
+SHAPED = [A_BAR, {"shape": ("bar", "ring")}]
 """When a position acts: while the modes have shapes (``shape = none`` makes every mode the same
 at every point)."""
 STRUCK_PLUCKED_OR_SAMPLED = {"excitation": ("strike", "pluck", "sample")}
@@ -52,6 +55,13 @@ class BandedParams:
     thickness_m: float
     width_m: float
     mode_count: int
+    theory: str
+    shear_modulus_pa: float
+    shear_coefficient: float
+    profile: str
+    undercut_depth: float
+    undercut_width: float
+    profile_samples: tuple[float, ...]
     frequency_hz: float
     mode_ratios: tuple[float, ...]
     mode_t60s_s: tuple[float, ...]
@@ -95,11 +105,18 @@ BANDED_TABLE = ParameterTable(
     "banded",
     [
         Parameter("tuning", "", None, None, "physics",
-                  "where the modes come from: physics (a uniform free-free bar of the material and size "
-                  "below) or ratios (frequency_hz x mode_ratios, with mode_t60s_s)",
-                  kind=CHOICE, choices=("physics", "ratios")),
-        *bar_size_parameters("tuning = physics: ", PHYSICS),
-        Parameter("mode_count", "", 1, MAX_MODES, 4, "tuning = physics: how many modes", kind=INT, when=PHYSICS),
+                  "where the modes come from: physics (a uniform free-free Euler-Bernoulli bar of the material "
+                  "and size below), ratios (frequency_hz x mode_ratios, with mode_t60s_s) or geometry (a "
+                  "free-free bar of the material, size and thickness profile below, in the chosen theory: its "
+                  "modes and its own mode shapes)",
+                  kind=CHOICE, choices=("physics", "ratios", "geometry")),
+        *bar_size_parameters("tuning = physics or geometry: ", A_BAR, shear=True),
+        Parameter("mode_count", "", 1, MAX_MODES, 4, "tuning = physics or geometry: how many modes", kind=INT,
+                  when=A_BAR),
+        # tuning = geometry (issue 15): the theory and the thickness profile of a real bar (free-free only:
+        # a banded bar rests on its nodes). The resonator tube and the vibraphone's motor go after these.
+        *theory_parameters("tuning = geometry: ", GEOMETRY, default="timoshenko"),
+        *profile_parameters("tuning = geometry: ", GEOMETRY),
         Parameter("frequency_hz", "Hz", 20.0, 5000.0, 220.0, "tuning = ratios: the fundamental", scale="log",
                   when=RATIOS),
         Parameter("mode_ratios", "", 0.25, 200.0, (1.0, 4.0, 10.0),

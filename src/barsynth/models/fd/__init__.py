@@ -9,6 +9,10 @@ must show.
 The bar ``rho A(x) y_tt = -(E I(x) y_xx)_xx - 2 sigma0 rho A y_t + 2 sigma1 rho A y_txx + f``
 lives on ``points`` grid nodes (:mod:`barsynth.physics.grid`), with any boundary condition of
 spec 1.2 and any thickness profile (uniform, parabolic or circular undercut, or sampled).
+With ``theory = timoshenko`` (spec 8.2) the bar is thick: shear and rotary inertia, on the
+staggered two-field grid of :mod:`barsynth.physics.timoshenko_grid` (deflections at the nodes,
+rotations between them, interleaved: the same pentadiagonal step), with ``shear_modulus_pa``
+and ``shear_coefficient`` (a ``material`` sets them).
 Time steps are the implicit theta scheme, one pentadiagonal solve per step; at
 ``theta <= 0.5`` it is stable at any step, above 0.5 the step is checked against the grid's
 highest frequency before anything runs, and a scheme that would blow up is refused with the

@@ -2,8 +2,9 @@
 
 Sources: S. Bilbao, Numerical Sound Synthesis (Wiley 2009), ch. 7 (the theta scheme, its
 stability and its losses); A. Chaigne and V. Doutaut, JASA 101 (1997) (non-uniform bars).
-The grid operator ``M, K, L`` comes from :mod:`barsynth.physics.grid`; here it becomes the
-step's matrices (see :mod:`.kernel`), the points where exciters and the pick-up meet the bar,
+The grid operator ``M, K, L`` comes from :mod:`barsynth.physics.grid` (Euler–Bernoulli) or
+:mod:`barsynth.physics.timoshenko_grid` (``theory = timoshenko``: deflections and rotations
+interleaved, the same pentadiagonal layout, so the same step); here it becomes the step's matrices (see :mod:`.kernel`), the points where exciters and the pick-up meet the bar,
 the decimation filter, and the modes and T60s the scheme really rings.
 """
 
@@ -17,28 +18,53 @@ import numpy as np
 from ...errors import ParameterError
 from ...exciters import PluckHold, StaticPoint
 from ...physics.grid import BarGrid, bar_grid, grid_eigen, grid_modes, highest_frequency, rigid_mode_count
-from ...physics.profiles import Profile
+from ...physics.timoshenko_grid import TwoFieldGrid, timoshenko_grid, timoshenko_grid_modes
+from ..rows import profile_of, shear_of
 from . import kernel as K
 from .table import FdParams
 
 
-def profile_of(p: FdParams) -> Profile:
-    return Profile(p.profile, depth=p.undercut_depth, width=p.undercut_width, samples=tuple(p.profile_samples))
+def grid_of(p: FdParams) -> BarGrid | TwoFieldGrid:
+    """The grid operator of the bar ``p`` describes (spec 1.6; a two-field grid for a
+    Timoshenko bar, spec 8.2)."""
+    bar = dict(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
+               thickness_m=p.thickness_m, width_m=p.width_m, bc=p.bc, points=p.points, profile=profile_of(p))
+    if p.theory == "timoshenko":
+        g, kappa = shear_of(p)
+        return timoshenko_grid(shear_modulus_pa=g, shear_coefficient=kappa, **bar)
+    return bar_grid(**bar)
 
 
-def grid_of(p: FdParams) -> BarGrid:
-    """The grid operator of the bar ``p`` describes (spec 1.6)."""
-    return bar_grid(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
-                    thickness_m=p.thickness_m, width_m=p.width_m, bc=p.bc, points=p.points, profile=profile_of(p))
+def deflection(grid: BarGrid | TwoFieldGrid, vector: np.ndarray) -> np.ndarray:
+    """The entries of ``vector`` (over the grid's unknowns) at its moving deflection nodes (a
+    two-field grid's rotations left out)."""
+    return grid.deflection(vector) if isinstance(grid, TwoFieldGrid) else vector
 
 
-def rigid_free(grid: BarGrid, vector: np.ndarray) -> np.ndarray:
-    """``vector`` (a force or an interpolation vector) with the rigid-body parts taken out,
-    ``v - M R R^T v`` for the M-orthonormal rigid motions R of a free-free bar."""
+def deflection_mass(grid: BarGrid | TwoFieldGrid) -> np.ndarray:
+    """The mass (kg) at each moving deflection node (a two-field grid's rotations left out)."""
+    return deflection(grid, grid.mass)
+
+
+def rigid_motions(grid: BarGrid | TwoFieldGrid) -> list[np.ndarray]:
+    """The grid's rigid-body motions over all its unknowns (none unless free-free): translation
+    and rotation about the centre of mass (with a two-field grid's rotations at 1)."""
     if rigid_mode_count(grid.bc) == 0:
+        return []
+    if isinstance(grid, TwoFieldGrid):
+        return grid.rigid_motions()
+    m = grid.mass
+    return [np.ones_like(m), grid.x_m - np.sum(m * grid.x_m) / np.sum(m)]
+
+
+def rigid_free(grid: BarGrid | TwoFieldGrid, vector: np.ndarray) -> np.ndarray:
+    """``vector`` (a force or an interpolation vector) with the rigid-body parts taken out,
+    ``v - M R R^T v`` for the M-orthonormal rigid motions R of a free-free bar (they are
+    M-orthogonal: the rotation is about the centre of mass)."""
+    rigid = rigid_motions(grid)
+    if not rigid:
         return vector
     m = grid.mass
-    rigid = [np.ones_like(m), grid.x_m - np.sum(m * grid.x_m) / np.sum(m)]  # translation, rotation about the centre
     out = vector.copy()
     for r in rigid:
         r = r / math.sqrt(np.sum(m * r * r))
@@ -46,7 +72,7 @@ def rigid_free(grid: BarGrid, vector: np.ndarray) -> np.ndarray:
     return out
 
 
-def point_vector(grid: BarGrid, position: float) -> np.ndarray:
+def point_vector(grid: BarGrid | TwoFieldGrid, position: float) -> np.ndarray:
     """The interpolation vector of ``position`` (fraction of the length), rigid motion left out:
     a unit force there, and the reading of a displacement there. Zero at a fixed node."""
     index, weight = grid.weights_at(position)
@@ -55,7 +81,7 @@ def point_vector(grid: BarGrid, position: float) -> np.ndarray:
     return rigid_free(grid, vector)
 
 
-def check_stability(p: FdParams, grid: BarGrid, output_rate: float) -> float:
+def check_stability(p: FdParams, grid: BarGrid | TwoFieldGrid, output_rate: float) -> float:
     """The largest stable theta for this grid and step (inf when any is); refuses ``p.theta`` above it."""
     omega = highest_frequency(grid)
     courant = (omega / (output_rate * p.oversampling)) ** 2  # (Omega k)^2
@@ -115,18 +141,31 @@ def factor(diagonal: np.ndarray, first: np.ndarray, second: np.ndarray) -> tuple
     return l1, l2, 1.0 / d
 
 
-def stencils(b: np.ndarray, c: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def loss_reach(c: np.ndarray) -> int:
+    """How far apart the unknowns are that the loss matrix ``c`` couples (1 or 2: the kernel
+    takes one pair of its off-diagonal bands; a tridiagonal or diagonal one counts as 1)."""
+    if np.any(np.diagonal(c, 1)):
+        if np.any(np.diagonal(c, 2)):
+            raise ValueError("the loss matrix couples neighbours one and two apart")
+        return 1
+    return 2 if np.any(np.diagonal(c, 2)) else 1
+
+
+def stencils(b: np.ndarray, c: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     """The kernel's coefficient rows (:class:`.kernel.Scheme`) from the dense matrices ``B``,
-    ``C / k`` and ``A``: ``bands`` and ``factors``, each row padded."""
+    ``C / k`` and ``A``: ``bands`` and ``factors``, each row padded; ``C``'s off-diagonal pair is
+    the one :func:`loss_reach` finds."""
     n = b.shape[0]
+    reach = loss_reach(c)
     bands = np.zeros((8, n + 2 * K.PAD))
-    for row, (matrix, offset) in enumerate(((b, 0), (b, -1), (b, 1), (b, -2), (b, 2), (c, 0), (c, -1), (c, 1))):
+    for row, (matrix, offset) in enumerate(((b, 0), (b, -1), (b, 1), (b, -2), (b, 2),
+                                            (c, 0), (c, -reach), (c, reach))):
         for i in range(n):
             j = i + offset
             if 0 <= j < n:
                 bands[row, K.PAD + i] = matrix[i, j]
     l1, l2, inv_d = factor(np.diagonal(a).copy(), np.diagonal(a, 1).copy(), np.diagonal(a, 2).copy())
-    return bands, np.array([K.padded(l1), K.padded(l2), K.padded(inv_d)])
+    return bands, np.array([K.padded(l1), K.padded(l2), K.padded(inv_d)]), reach
 
 
 class Point(NamedTuple):
@@ -141,7 +180,7 @@ class Point(NamedTuple):
 class Design(NamedTuple):
     """Everything the voice needs for ``p`` at an output rate, none of it state."""
 
-    grid: BarGrid
+    grid: BarGrid | TwoFieldGrid
     scheme: K.Scheme
     strike: Point
     bow: Point
@@ -165,7 +204,7 @@ def design(p: FdParams, output_rate: float) -> Design:
     b = 2.0 * np.diag(m) / k ** 2 - p.theta * stiff
     c = damping / k
     try:
-        bands, factors = stencils(b, c, a)
+        bands, factors, reach = stencils(b, c, a)
     except ValueError:
         raise ParameterError("parameters give a step matrix that cannot be solved; allowed: a bar whose grid "
                              "is well conditioned (try fewer points)") from None
@@ -175,13 +214,13 @@ def design(p: FdParams, output_rate: float) -> Design:
         response = K.solve(at, factors)
         return Point(K.padded(at), K.padded(response), float(np.dot(at, response)))
 
-    return Design(grid, K.Scheme(bands, factors, rate, p.oversampling), point(p.strike_position),
+    return Design(grid, K.Scheme(bands, factors, rate, p.oversampling, reach), point(p.strike_position),
                   point(p.bow_position), K.padded(point_vector(grid, p.pickup_position)),
                   decimation_filter(p.oversampling, output_rate), 10.0 ** (p.level_db / 20.0))
 
 
 # -- the pluck -----------------------------------------------------------------------------
-def plucked_shape(hold: PluckHold, grid: BarGrid, position: float) -> np.ndarray:
+def plucked_shape(hold: PluckHold, grid: BarGrid | TwoFieldGrid, position: float) -> np.ndarray:
     """The bar held out ``hold.displacement_m`` at ``position`` (fraction of the length) by a
     point force (rigid motion left out): the static deflection under the force
     :meth:`~barsynth.exciters.PluckHold.force_n` gives (the pluck's coupled form,
@@ -194,7 +233,7 @@ def plucked_shape(hold: PluckHold, grid: BarGrid, position: float) -> np.ndarray
     values, vectors = values[elastic], vectors[:, elastic]
     force_at = point_vector(grid, position)  # (the point vector is also the unit force vector)
     shape = vectors @ ((vectors.T @ force_at) / values)  # the deflection under a unit force (m/N)
-    largest = float(np.max(np.abs(shape))) if shape.size else 0.0
+    largest = float(np.max(np.abs(deflection(grid, shape)))) if shape.size else 0.0  # (m: rotations left out)
     there = float(np.dot(force_at, shape))
     if there > np.finfo(float).tiny:
         return shape * hold.force_n(StaticPoint(there, largest))
@@ -228,8 +267,8 @@ class SchemeModes(NamedTuple):
     frequency_hz: np.ndarray
     t60_s: np.ndarray
     shapes: np.ndarray
-    """Mass-normalised shapes (nodes x modes)."""
-    grid: BarGrid
+    """Mass-normalised shapes (unknowns x modes)."""
+    grid: BarGrid | TwoFieldGrid
 
 
 def scheme_modes(p: FdParams, sample_rate: float, count: int) -> SchemeModes:
@@ -249,14 +288,24 @@ def scheme_modes(p: FdParams, sample_rate: float, count: int) -> SchemeModes:
 
 def reference_errors_cents(p: FdParams, sample_rate: float, count: int) -> np.ndarray:
     """How far (cents) each mode the scheme rings lies from the converged bar's: spec 1.2's
-    closed form for a uniform bar, the Richardson-extrapolated operator for any other
-    profile. Negative: the grid and the step ring it flat."""
+    closed form for a uniform bar (spec 8.2's for a Timoshenko one), the Richardson-extrapolated
+    operator for any other profile. Negative: the grid and the step ring it flat."""
     found = scheme_modes(p, sample_rate, count).frequency_hz
     if found.size == 0:
         return found
     bar = dict(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
                thickness_m=p.thickness_m, bc=p.bc)
-    if p.profile == "uniform":
+    if p.theory == "timoshenko":  # spec 8.2's closed form, or the extrapolated two-field operator
+        g, kappa = shear_of(p)
+        shear = dict(shear_modulus_pa=g, shear_coefficient=kappa)
+        if p.profile == "uniform":
+            from ...physics.timoshenko import timoshenko_frequencies
+
+            reference = timoshenko_frequencies(count=found.size, **shear, **bar)
+        else:
+            reference = timoshenko_grid_modes(count=found.size, width_m=p.width_m, profile=profile_of(p), **shear,
+                                              **bar)
+    elif p.profile == "uniform":
         from ...physics import bar_frequencies
 
         reference = bar_frequencies(count=found.size, **bar)

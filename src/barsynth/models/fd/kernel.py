@@ -52,13 +52,18 @@ class Scheme(NamedTuple):
     """The step, fixed until the parameters change (see :func:`barsynth.models.fd.design.scheme`)."""
 
     bands: np.ndarray
-    """(8, padded n): B's coefficients of nodes i, i-1, i+1, i-2, i+2, then (C/k)'s of i, i-1, i+1."""
+    """(8, padded n): B's coefficients of nodes i, i-1, i+1, i-2, i+2, then (C/k)'s of i,
+    i - reach, i + reach (``loss_reach``)."""
     factors: np.ndarray
     """(3, padded n): l1, l2 and 1/d of ``A = L D L^T``."""
     step_rate: float
     """Scheme steps per second (Hz): the output rate x ``substeps``."""
     substeps: int
     """Scheme steps per output sample (oversampling)."""
+    loss_reach: int
+    """How far apart the unknowns are that the losses ``C`` couple: 1 on the Euler–Bernoulli
+    grid (a tridiagonal Laplacian), 2 on the interleaved two-field grid (deflections only);
+    no other value."""
 
 
 class Bar(NamedTuple):
@@ -277,7 +282,8 @@ def process(out, scheme, bar, mallet, bow, lines, start, pickup):  # pragma: no 
     end = u.size - PAD
     rate = scheme.step_rate
     bands, factors = scheme.bands, scheme.factors
-    b0, bl1, br1, bl2, br2, c0, cl1, cr1 = bands[0], bands[1], bands[2], bands[3], bands[4], bands[5], bands[6], bands[7]
+    b0, bl1, br1, bl2, br2, c0, cl, cr = bands[0], bands[1], bands[2], bands[3], bands[4], bands[5], bands[6], bands[7]
+    reach = scheme.loss_reach
     l1, l2, inv_d = factors[0], factors[1], factors[2]
     mallet_response, bow_response = mallet.response, bow.response
     at_pickup = pickup.at
@@ -293,20 +299,33 @@ def process(out, scheme, bar, mallet, bow, lines, start, pickup):  # pragma: no 
         t = step // substeps
         # A s = B u + (C/k) u-: the right-hand side formed inside the forward substitution
         # (the last two values of each substitution ride in registers: the recurrences are the critical path;
-        # so do the stencils' neighbours, loaded once each: numba cannot tell that s is apart from u)
+        # so do the stencils' neighbours, loaded once each: numba cannot tell that s is apart from u. The
+        # two-field grid's losses reach two apart: its u- is loaded where it is used, as a third window of
+        # registers spilled and cost the Euler-Bernoulli bar 15 %)
         s1 = s2 = 0.0
         u_l2, u_l1, u_0, u_r1 = u[PAD - 2], u[PAD - 1], u[PAD], u[PAD + 1]
-        p_l1, p_0 = u_prev[PAD - 1], u_prev[PAD]
-        for q in range(PAD, end):
-            u_r2, p_r1 = u[q + 2], u_prev[q + 1]
-            r = (b0[q] * u_0 + bl1[q] * u_l1 + br1[q] * u_r1 + bl2[q] * u_l2 + br2[q] * u_r2
-                 + c0[q] * p_0 + cl1[q] * p_l1 + cr1[q] * p_r1)
-            value = (r - l2[q] * s2) - l1[q] * s1
-            s[q] = value
-            s2 = s1
-            s1 = value
-            u_l2, u_l1, u_0, u_r1 = u_l1, u_0, u_r1, u_r2
-            p_l1, p_0 = p_0, p_r1
+        if reach == 1:
+            p_l1, p_0 = u_prev[PAD - 1], u_prev[PAD]
+            for q in range(PAD, end):
+                u_r2, p_r1 = u[q + 2], u_prev[q + 1]
+                r = (b0[q] * u_0 + bl1[q] * u_l1 + br1[q] * u_r1 + bl2[q] * u_l2 + br2[q] * u_r2
+                     + c0[q] * p_0 + cl[q] * p_l1 + cr[q] * p_r1)
+                value = (r - l2[q] * s2) - l1[q] * s1
+                s[q] = value
+                s2 = s1
+                s1 = value
+                u_l2, u_l1, u_0, u_r1 = u_l1, u_0, u_r1, u_r2
+                p_l1, p_0 = p_0, p_r1
+        else:
+            for q in range(PAD, end):
+                u_r2 = u[q + 2]
+                r = (b0[q] * u_0 + bl1[q] * u_l1 + br1[q] * u_r1 + bl2[q] * u_l2 + br2[q] * u_r2
+                     + c0[q] * u_prev[q] + cl[q] * u_prev[q - 2] + cr[q] * u_prev[q + 2])
+                value = (r - l2[q] * s2) - l1[q] * s1
+                s[q] = value
+                s2 = s1
+                s1 = value
+                u_l2, u_l1, u_0, u_r1 = u_l1, u_0, u_r1, u_r2
         x = (start + t) + (step % substeps) / substeps  # the bow's clock, in output samples
         pressure, j_pressure = line_value(lines[PRESSURE], x, j_pressure)
         touching = mallet_state.touching

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
-from .design import point_vector, reference_errors_cents, scheme_modes
+from .design import deflection_mass, point_vector, reference_errors_cents, scheme_modes
 from .table import FD_EXCITERS, FD_TABLE
 from .voice import FdVoice
 
@@ -31,7 +31,7 @@ class FdModel(Model):
         p = self.resolve(parameters)
         found = scheme_modes(p, check_sample_rate(sample_rate), MAX_DESCRIBED)
         grid = found.grid
-        total = math.sqrt(float(np.sum(grid.mass)))
+        total = math.sqrt(float(np.sum(deflection_mass(grid))))
         strike, pickup = point_vector(grid, p.strike_position), point_vector(grid, p.pickup_position)
         modes = []
         for f, t60, shape in zip(found.frequency_hz, found.t60_s, found.shapes.T):

@@ -5,13 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...exciters import BOWED, STRUCK_OR_PLUCKED, Bow, Pluck, Strike
-from ...parameters import CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
+from ...parameters import CHOICE, INT, Parameter, ParameterTable
 from ...physics.boundary import BOUNDARY_CONDITIONS
-from ...physics.profiles import PROFILE_KINDS, THINNEST
-from ..rows import bar_size_parameters, excitation_parameter, level_parameter
-
-UNDERCUT = {"profile": ("parabolic", "circular")}
-
+from ..rows import bar_size_parameters, excitation_parameter, level_parameter, profile_parameters, theory_parameters
 
 FD_EXCITERS = (Strike, Bow, Pluck)
 """The exciters it offers, in the order of its ``excitation`` choices (the model's ``exciters``)."""
@@ -27,6 +23,9 @@ class FdParams:
     length_m: float
     thickness_m: float
     width_m: float
+    theory: str
+    shear_modulus_pa: float
+    shear_coefficient: float
     bc: str
     profile: str
     undercut_depth: float
@@ -56,21 +55,11 @@ class FdParams:
 FD_TABLE = ParameterTable(
     "fd",
     [
-        *bar_size_parameters(),
+        *bar_size_parameters(shear=True),
+        *theory_parameters(),
         Parameter("bc", "", None, None, "free-free", "boundary conditions at the two ends (x = 0 first)",
                   kind=CHOICE, choices=BOUNDARY_CONDITIONS),
-        Parameter("profile", "", None, None, "uniform",
-                  "thickness along the bar: uniform, parabolic or circular (an undercut at the middle), or "
-                  "samples (profile_samples)", kind=CHOICE, choices=PROFILE_KINDS),
-        Parameter("undercut_depth", "", 0.0, 1.0 - THINNEST, 0.0,
-                  "profile = parabolic or circular: depth of the undercut at the middle, fraction of the thickness",
-                  when=UNDERCUT),
-        Parameter("undercut_width", "", 0.05, 1.0, 0.6,
-                  "profile = parabolic or circular: length of the undercut, fraction of the bar's length",
-                  when={**UNDERCUT, "undercut_depth": Compare(">", 0.0)}),
-        Parameter("profile_samples", "", THINNEST, 1.0, (),
-                  "profile = samples: thickness / thickness_m at equally spaced points from end to end",
-                  kind=FLOATS, max_items=64, when={"profile": ("samples",)}),
+        *profile_parameters(),
         Parameter("points", "", 8, 400, 100, "grid nodes along the bar: more are more accurate and slower",
                   kind=INT),
         Parameter("theta", "", 0.0, 1.0, 0.5,

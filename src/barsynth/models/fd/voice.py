@@ -76,11 +76,11 @@ class FdVoice(Voice):
     def _update(self, old: FdParams) -> None:
         """On the same grid what rings keeps ringing (a new step keeps its velocities) and a new
         level glides there over ``LEVEL_GLIDE_S`` (:mod:`barsynth.dsp.smoothing`); a new grid
-        starts silent. The exciters follow (a new bow velocity or force glides there)."""
+        (another size or another theory) starts silent. The exciters follow (a new bow velocity or force glides there)."""
         p = self._params
         new = design(p, self.sample_rate)
         self._exciters.update(p)  # (before the mallet's record is made anew)
-        if new.grid.mass.size != self._design.grid.mass.size:
+        if new.grid.mass.size != self._design.grid.mass.size or p.theory != old.theory:
             self._allocate(new)
         else:
             if p.oversampling != old.oversampling:
