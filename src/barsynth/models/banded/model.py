@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..base import Mode, Model
@@ -41,7 +43,8 @@ class BandedModel(Model):
         if p.tube == "on":
             tube = design_bank(p, rate).tube
             k = p.tube_mode - 1
-            gains[k] = strike[k] * abs(gains[k] / strike[k] + tube.through_tube) if strike[k] else 0.0
+            sign = math.copysign(1.0, gains[k] if gains[k] else strike[k])  # (the sign the mode had)
+            gains[k] = sign * abs(strike[k]) * abs(gains[k] / strike[k] + tube.through_tube) if strike[k] else 0.0
             extra = [Mode("tube", tube.design.frequency_hz, 0.0, tube.design.t60_s)]
         return [Mode("mode", float(freqs[k]), float(gains[k]), float(t60s[k]))
                 for k in np.flatnonzero(playable(freqs, rate))] + extra
