@@ -7,15 +7,15 @@ import math
 
 import numpy as np
 import pytest
+from clicks import MAX_HIGHPASS_SPIKE, MAX_STEP_RATIO, highpass_spike, step_ratio
 from scipy.signal import butter, hilbert, sosfiltfilt
+from streaming import play
 
 from barsynth.analysis import measure_partial
 from barsynth.dsp.smoothing import SmoothedValue
 from barsynth.dsp.tube import END_CORRECTION, SPEED_OF_SOUND_M_S, design_tube, empty_tube, run_tube
 from barsynth.errors import ParameterError
 from barsynth.models import get_model
-from clicks import MAX_HIGHPASS_SPIKE, MAX_STEP_RATIO, highpass_spike, step_ratio
-from streaming import play
 
 MODEL = get_model("banded")
 RATE = 48000

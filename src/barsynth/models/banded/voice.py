@@ -29,8 +29,18 @@ from __future__ import annotations
 import numpy as np
 
 from ...dsp.bow_stroke import BowControls
-from ...dsp.smoothing import (CURRENT, LEFT, LEVEL_GLIDE_S, LINEAR, MULTIPLICATIVE, SMOOTHED_STATE, TARGET,
-                              ramp_steps, scale, start_ramp_now)
+from ...dsp.smoothing import (
+    CURRENT,
+    LEFT,
+    LEVEL_GLIDE_S,
+    LINEAR,
+    MULTIPLICATIVE,
+    SMOOTHED_STATE,
+    TARGET,
+    ramp_steps,
+    scale,
+    start_ramp_now,
+)
 from ...dsp.tube import empty_tube, run_tube
 from ...exciters import Bow, ExciterSet, ForceQueue
 from ...jitstart import compiled_for
