@@ -35,7 +35,7 @@ UNIT_LEVEL = SmoothedValue(1.0, ramp_s=1.0, step_rate=1.0, kind="multiplicative"
 
 
 def run(out, force, loops, state):
-    K.process(out, force, 0.0, loops, state, UNIT_LEVEL, 0)
+    K.process(out, np.zeros(0), force, 0.0, loops, state, UNIT_LEVEL, 0)
 
 
 def impulse_response(design, seconds):

@@ -521,16 +521,16 @@ def test_the_allocation_check_fails_on_an_injected_temporary(leak, kind):
 
 
 # -- numba's own allocations -------------------------------------------------------------------
-NUMBA_ARRAYS_PER_CALL = {"twang": 27, "farnell": 8, "banded": 17, "allpass": 66, "fd": 18}
+NUMBA_ARRAYS_PER_CALL = {"twang": 27, "farnell": 8, "banded": 19, "allpass": 66, "fd": 18}
 """The most NRT allocations (numba's runtime: malloc'd, not seen by tracemalloc) one
 process(n, out=buf) call of each model's voice may make, for blocks up to max_block; each
 is freed before the call returns. Measured: each is the wrapper (an NRT MemInfo) numba makes
 for one NumPy array argument it unboxes into a compiled call; no kernel allocates (one more
 array in a call, or an array made inside a kernel, adds one: the test below shows both).
 twang 23 arrays in its records for a note that holds still (its static kernel) and 27 for
-one that moves, Farnell 8, banded 8 struck or plucked, 10 while a recorded attack is heard (the
-level applied to it) and 9 bowed (17 in the block its bow is
-lifted in: both kernels), all-pass 18 and 16 more for each replaced
+one that moves, Farnell 8, banded 9 struck or plucked (one is the drive of a resonator tube, empty
+without one), 11 while a recorded attack is heard (the level applied to it) and 10 bowed (19 in the
+block its bow is lifted in: both kernels), all-pass 18 and 16 more for each replaced
 waveguide still ringing (at most MAX_RETIRED = 3), fd 18. A CrossfadingVoice adds its old
 voice's during a fade."""
 
@@ -956,14 +956,16 @@ SWEEP_FACTOR = 4.0
 REFUSAL_REASONS = {
     "twang": ("Nyquist",),
     "farnell": (),
-    "banded": ("no mode of this object", "too short", "values for", "no free-free bar"),
+    "banded": ("no mode of this object", "too short", "values for", "no free-free bar", "tube_mode",
+               "tube_radius_m"),
     "allpass": ("first mode",),
     "fd": ("unstable",),
 }
 """Why each model may refuse settings that are each in range (words its one-line message must
 contain): a ruler with no audible mode; an object with no mode between 30 Hz and a quarter of
 the rate, a T60 shorter than its mode allows, more T60s or gains than modes, ratios no bar has
-with shape = bar (a doublet); a bar whose first mode
+with shape = bar (a doublet), a tube on a mode the object lacks (or that does not sound) or too
+wide for its frequency; a bar whose first mode
 lies outside the band the all-pass filters are fitted in; an unstable finite-difference step.
 Farnell's patch refuses nothing. Random settings and changes while sounding are refused only
 for these: a model not listed may refuse nothing (a new model adds its reasons here).

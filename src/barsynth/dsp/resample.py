@@ -32,7 +32,9 @@ def resample(samples: np.ndarray, from_hz: float, to_hz: float) -> np.ndarray:
     x = np.asarray(samples, dtype=np.float64)
     ratio = Fraction(int(round(to_hz)), int(round(from_hz)))
     if max(ratio.numerator, ratio.denominator) > MOST_TERMS:  # the larger term limited (then the other is)
-        ratio = ratio.limit_denominator(MOST_TERMS) if ratio < 1 else 1 / (1 / ratio).limit_denominator(MOST_TERMS)
+        small = ratio if ratio < 1 else 1 / ratio
+        small = max(small.limit_denominator(MOST_TERMS), Fraction(1, MOST_TERMS))  # (not 0 below 1 / 2000)
+        ratio = small if ratio < 1 else 1 / small
     if ratio == 1 or x.size == 0:
         return x.copy()
     from scipy.signal import resample_poly

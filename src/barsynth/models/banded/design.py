@@ -48,6 +48,7 @@ from ...physics import bar_frequencies, mode_shape
 from ...physics.tuned_bar import TOLERANCE_CENTS, tune_bar
 from .geometry import closed_form, geometry_bar
 from .kernel import LOOP
+from .resonator import TubeCoupling, check_tube_mode, design_coupling, tube_t60s
 from .table import MAX_MODES, MIN_Q, BandedParams
 
 LOWEST_HZ = 20.0
@@ -258,13 +259,18 @@ class BankDesign:
     shapes at the pick-up times each mode's gain, without the level); ``modes``: each loop's row in
     :func:`mode_table`; ``strike_point``: the object at the strike point (compliance and
     largest deflection per newton, m/N), for a pluck; ``level``: the output gain, ``level_db``
-    as a factor (the voice applies it to the loops' sum, gliding to a new one).
+    as a factor (the voice applies it to the loops' sum, gliding to a new one); ``tube``: the
+    resonator tube (:mod:`.resonator`), or None; ``frequencies_hz``, ``t60s_s``: each loop's
+    mode (with the tube's pull on its mode).
     """
 
     loops: np.ndarray
     modes: np.ndarray
     strike_point: StaticPoint
     level: float
+    tube: TubeCoupling | None = None
+    frequencies_hz: np.ndarray | None = None
+    t60s_s: np.ndarray | None = None
 
     @property
     def longest_delay(self) -> int:
@@ -284,6 +290,8 @@ def design_bank(p: BandedParams, sample_rate: float) -> BankDesign:
     (array([0, 1, 2]), array([108,  26,  10]))
     """
     freqs, t60s, mass = mode_table(p)
+    check_tube_mode(p, len(freqs))
+    t60s = tube_t60s(p, t60s)
     keep = playable(freqs, sample_rate)
     if not keep.any():
         raise ParameterError(f"no mode of this object lies between {LOWEST_HZ:g} Hz and a quarter of the "
@@ -301,8 +309,12 @@ def design_bank(p: BandedParams, sample_rate: float) -> BankDesign:
     loops["bow_in"] = input_scale * bow / (sample_rate * mass)
     loops["bow_at"] = bow
     loops["out"] = pickup * mode_gains(p, count)[modes] if p.mode_gains_db else pickup
+    tube = None
+    if p.tube == "on":
+        loops["mouth"] = mode_shapes(p, count, p.tube_position)[modes]
+        tube = design_coupling(p, freqs, t60s, modes, loops["mouth"], loops["out"], sample_rate)
     stiffness = mass * (2.0 * math.pi * freqs[modes]) ** 2  # N/m per mode
     along = mode_shapes(p, count, POSITIONS_ALONG)[modes]
     strike_point = StaticPoint(compliance_m_n=float(np.sum(strike ** 2 / stiffness)),
                               reach_m_n=largest_deflection(strike, along, stiffness))
-    return BankDesign(loops, modes, strike_point, 10.0 ** (p.level_db / 20.0))
+    return BankDesign(loops, modes, strike_point, 10.0 ** (p.level_db / 20.0), tube, freqs[modes], t60s[modes])

@@ -47,6 +47,7 @@ LOOP = np.dtype([
     ("bow_in", "f8"),  # weight of the bow's friction force: as force_in, with the mode shape at the bow
     ("bow_at", "f8"),  # mode shape at the bow: the bar's velocity there is sum(bow_at x ap)
     ("out", "f8"),  # output weight: mode shape at the pick-up (the level is the voice's output gain)
+    ("mouth", "f8"),  # weight in the drive of a tube: mode shape at its mouth (resonator.py)
 ])
 """One loop's coefficients."""
 
@@ -78,15 +79,15 @@ class LoopState(NamedTuple):
     position: np.ndarray
     """(1,) int64: the write index into ``buffers``."""
     work: np.ndarray
-    """(loops + 4, CHUNK): :func:`process_bowed`'s work space: all-pass outputs, friction, force,
-    and the loops' ``bow_at`` and ``out`` weights side by side (read every sample)."""
+    """(loops + 5, CHUNK): :func:`process_bowed`'s work space: all-pass outputs, friction, force,
+    and the loops' ``bow_at``, ``out`` and ``mouth`` weights side by side (read every sample)."""
 
 
 def empty_state(bands: int, longest_delay: int) -> LoopState:
     """Silent loops: zeroed lines and filters for ``bands`` loops, delays up to ``longest_delay``."""
     size = 1 << max(4, int(longest_delay + 2).bit_length())
     return LoopState(np.zeros(bands, dtype=FILTER), np.zeros((bands, size)), np.zeros(1, dtype=np.int64),
-                     np.zeros((bands + 4, max(CHUNK, bands))))
+                     np.zeros((bands + 5, max(CHUNK, bands))))
 
 
 def silence(state: LoopState) -> None:
@@ -136,13 +137,15 @@ def _silent(v1, v2, y1, y2, ap_x, ap_y, buffers, k):  # pragma: no cover - compi
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def process(out, pending, held, loops, state, level, start):  # pragma: no cover - compiled
+def process(out, drive, pending, held, loops, state, level, start):  # pragma: no cover - compiled
     """Run the bank for ``out.size`` samples driven by a force (N): ``pending[t]`` for the
     first ``pending.size`` samples, then ``held``. ``loops``: :data:`LOOP` records;
     ``state``: the :class:`LoopState`, updated; ``level``: the output gain, a multiplicative
     :mod:`barsynth.dsp.smoothing` state (stepped a sample at a time, so the sum is exactly
     the loops' for a gain held at 1); ``start``: the sample index of ``out[0]`` counted from the
-    reset (a loop that has died away is set to 0 at every ``FLUSH_PERIOD`` of it).
+    reset (a loop that has died away is set to 0 at every ``FLUSH_PERIOD`` of it). ``drive``:
+    empty, or ``out.size`` samples that get the loops' all-pass outputs weighted by their
+    ``mouth`` (the bar's velocity at a tube's mouth; not scaled by the level).
 
     With a force known in advance the bands do not interact, so they run two at a time over
     the whole block with their states in registers (measured: twice as fast as all bands per
@@ -155,12 +158,16 @@ def process(out, pending, held, loops, state, level, start):  # pragma: no cover
     n = out.size
     n_pending = min(n, pending.size)
     out[:] = 0.0
+    mouthing = drive.size > 0
+    if mouthing:
+        drive[:] = 0.0
     for k in range(0, bands, 2):
         j = min(k + 1, bands - 1)  # an odd last band runs beside itself, silently
         on = 1.0 if k + 1 < bands else 0.0
         la, lb, fa, fb = loops[k], loops[j], filters[k], filters[j]
         b0a, a1a, a2a, eta_a, ga, ina, outa = la.b0, la.a1, la.a2, la.eta, la.gain, la.force_in, la.out
         b0b, a1b, a2b, eta_b, gb, inb, outb = lb.b0, lb.a1, lb.a2, lb.eta, lb.gain, lb.force_in * on, lb.out * on
+        mouth_a, mouth_b = la.mouth, lb.mouth * on
         ma, mb = la.delay, lb.delay
         v1a, v2a, y1a, y2a, xa, apa = fa.v1, fa.v2, fa.y1, fa.y2, fa.ap_x, fa.ap_y
         v1b, v2b, y1b, y2b, xb, apb = fb.v1, fb.v2, fb.y1, fb.y2, fb.ap_x, fb.ap_y
@@ -192,6 +199,8 @@ def process(out, pending, held, loops, state, level, start):  # pragma: no cover
                 if on > 0.0:
                     buffers[j, pos] = yb
                 out[t] += outa * apa + outb * apb
+                if mouthing:
+                    drive[t] += mouth_a * apa + mouth_b * apb
                 pos = (pos + 1) & mask
             if ((start + t1) & (FLUSH_PERIOD - 1)) == 0:
                 if _silent(v1a, v2a, y1a, y2a, xa, apa, buffers, k):
@@ -207,8 +216,8 @@ def process(out, pending, held, loops, state, level, start):  # pragma: no cover
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def process_bowed(out, pending, held_force, lines, start, loops, state, level):  # pragma: no cover - compiled
-    """As :func:`process` (``held_force`` is its ``held``), with a bow as well, whose controls
+def process_bowed(out, drive, pending, held_force, lines, start, loops, state, level):  # pragma: no cover
+    """As :func:`process` (``held_force`` is its ``held``; ``drive`` the same), with a bow as well, whose controls
     are the breakpoint ``lines`` of :class:`barsynth.dsp.bow_stroke.BowControls`; ``start`` is
     the absolute sample index of ``out[0]``; the state's ``work`` is the work space. The bow's
     velocity is speed x velocity (m/s), its force pressure x force (N).
@@ -234,9 +243,10 @@ def process_bowed(out, pending, held_force, lines, start, loops, state, level): 
         chunk = min(chunk, loops[k].delay)
     chunk = max(1, chunk)
     ap_out, friction, force_in = work[:bands], work[bands], work[bands + 1]
-    bow_at, out_weight = work[bands + 2], work[bands + 3]
+    bow_at, out_weight, mouth = work[bands + 2], work[bands + 3], work[bands + 4]
     for k in range(bands):
-        bow_at[k], out_weight[k] = loops[k].bow_at, loops[k].out
+        bow_at[k], out_weight[k], mouth[k] = loops[k].bow_at, loops[k].out, loops[k].mouth
+    mouthing = drive.size > 0
     j_speed = j_pressure = j_velocity = j_force = 0
     c = 0
     while c < n:
@@ -276,6 +286,11 @@ def process_bowed(out, pending, held_force, lines, start, loops, state, level): 
             friction[i] = friction_given_width(v_bow - v_bar, f_bow, inverse_width) if f_bow > 0.0 else 0.0
             force_in[i] = pending[c + i] if c + i < n_pending else held_force
             out[c + i] = total
+            if mouthing:
+                at_mouth = 0.0
+                for k in range(bands):
+                    at_mouth += mouth[k] * ap_out[k, i]
+                drive[c + i] = at_mouth
         for k in range(bands):  # band-passes, into the delay lines
             loop, state = loops[k], filters[k]
             b0, a1, a2, w_in, w_bow, g = loop.b0, loop.a1, loop.a2, loop.force_in, loop.bow_in, loop.gain

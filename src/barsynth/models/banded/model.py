@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
-from .design import mode_gains, mode_shapes, mode_table, playable
+from .design import design_bank, mode_gains, mode_shapes, mode_table, playable
+from .resonator import check_tube_mode, tube_t60s
 from .table import BANDED_EXCITERS, BANDED_TABLE, BandedParams
 from .voice import BandedVoice
 
@@ -23,15 +26,28 @@ class BandedModel(Model):
     def describe(self, parameters: BandedParams | dict | None = None, *,
                  sample_rate: float = 48000.0) -> list[Mode]:
         """The modes that sound: frequency (Hz), gain (strike shape x pick-up shape x the mode's own
-        gain, ``mode_gains_db``) and T60 (s)."""
+        gain, ``mode_gains_db``) and T60 (s). With a tube, the mode it is tuned to has its pull
+        (``tube_damping``) in its T60 and the tube's sound in its gain (strike shape x |pick-up
+        shape x own gain + what the tube makes of the mode|, the motor open, once the tube's own
+        start has died away), and a last entry ``tube`` gives the tube's own resonance and T60
+        (gain 0: it sounds only through the mode)."""
         p = self.resolve(parameters)
         rate = check_sample_rate(sample_rate)
         freqs, t60s, _ = mode_table(p)
+        check_tube_mode(p, len(freqs))
+        t60s = tube_t60s(p, t60s)
         strike = mode_shapes(p, len(freqs), p.strike_position)
         pickup = mode_shapes(p, len(freqs), p.pickup_position)
-        gains = mode_gains(p, len(freqs))
-        return [Mode("mode", float(freqs[k]), float(strike[k] * pickup[k] * gains[k]), float(t60s[k]))
-                for k in np.flatnonzero(playable(freqs, rate))]
+        gains = strike * pickup * mode_gains(p, len(freqs))
+        extra = []
+        if p.tube == "on":
+            tube = design_bank(p, rate).tube
+            k = p.tube_mode - 1
+            sign = math.copysign(1.0, gains[k] if gains[k] else strike[k])  # (the sign the mode had)
+            gains[k] = sign * abs(strike[k]) * abs(gains[k] / strike[k] + tube.through_tube) if strike[k] else 0.0
+            extra = [Mode("tube", tube.design.frequency_hz, 0.0, tube.design.t60_s)]
+        return [Mode("mode", float(freqs[k]), float(gains[k]), float(t60s[k]))
+                for k in np.flatnonzero(playable(freqs, rate))] + extra
 
 
 MODEL = BandedModel()

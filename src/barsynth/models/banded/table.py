@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from ...exciters import Bow, Pluck, Sample, Strike
 from ...parameters import CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
 from ..rows import bar_size_parameters, excitation_parameter, level_parameter, profile_parameters, theory_parameters
+from .resonator import resonator_parameters
 
 MAX_MODES = 24
 """The most modes (loops) an object may have."""
@@ -85,6 +86,18 @@ class BandedParams:
     attack_rate_hz: int
     attack_pitch_hz: float
     attack_level_db: float
+    # the tube, the motor and the damper (resonator.resonator_parameters)
+    tube: str
+    tube_mode: int
+    tube_radius_m: float
+    tube_detune_cents: float
+    tube_position: float
+    tube_gain_db: float
+    tube_damping: float
+    motor_rate_hz: float
+    motor_depth: float
+    damper: str
+    damper_t60_s: float
     level_db: float
 
 
@@ -135,6 +148,7 @@ BANDED_TABLE = ParameterTable(
         *Pluck.parameters(),
         *[where_shaped(row) if row.name == "bow_position" else row for row in Bow.parameters()],
         *Sample.parameters(),
+        *[where_shaped(row) if row.name == "tube_position" else row for row in resonator_parameters(MAX_MODES)],
         level_parameter(),
     ],
     record=BandedParams,
