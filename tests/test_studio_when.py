@@ -118,9 +118,27 @@ def _samples(p: Parameter) -> list:
 
 
 def _settings(table: ParameterTable) -> list[dict]:
-    """Every combination of the sampled values of the parameters some row's "when" reads."""
+    """For each row, every combination of the sampled values of the parameters its "when" reads,
+    and of those these read in turn (the others at their first sample): whether a row acts depends
+    on no other (the whole product of every name any row reads had grown to 1.5 million banded
+    settings, more than Node.js could take in as one string)."""
     names = sorted({name for p in table for name in p.reads})
-    combos = [dict(zip(names, combo)) for combo in itertools.product(*(_samples(table[n]) for n in names))]
+    base = {name: _samples(table[name])[0] for name in names}
+    combos, seen = [], set()
+    for p in table:
+        group, todo = set(), list(p.reads)
+        while todo:  # the reads' closure
+            name = todo.pop()
+            if name not in group:
+                group.add(name)
+                todo.extend(table[name].reads)
+        group = sorted(group)
+        for combo in itertools.product(*(_samples(table[n]) for n in group)):
+            chosen = {**base, **dict(zip(group, combo))}
+            key = json.dumps(chosen, sort_keys=True, default=str)
+            if key not in seen:
+                seen.add(key)
+                combos.append(chosen)
     for p in table:  # each number a comparison names, and either side of it
         for name, c in (pair for clause in p.when for pair in clause):
             if isinstance(c, Compare) and not isinstance(c.than, str) and not c.count:
