@@ -9,7 +9,7 @@ import numpy as np
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
 from .design import design_bank, mode_gains, mode_shapes, mode_table, playable
-from .resonator import check_tube_mode, tube_t60s
+from .resonator import check_tube_mode, heard_mode, tube_t60s
 from .table import BANDED_EXCITERS, BANDED_TABLE, BandedParams
 from .voice import BandedVoice
 
@@ -44,7 +44,10 @@ class BandedModel(Model):
             tube = design_bank(p, rate).tube
             k = p.tube_mode - 1
             sign = math.copysign(1.0, gains[k] if gains[k] else strike[k])  # (the sign the mode had)
-            gains[k] = sign * abs(strike[k]) * abs(gains[k] / strike[k] + tube.through_tube) if strike[k] else 0.0
+            if strike[k]:
+                level, t60s[k] = heard_mode(gains[k] / strike[k], tube.through_tube, float(freqs[k]),
+                                            float(t60s[k]), tube.design)
+                gains[k] = sign * abs(strike[k]) * level
             extra = [Mode("tube", tube.design.frequency_hz, 0.0, tube.design.t60_s)]
         return [Mode("mode", float(freqs[k]), float(gains[k]), float(t60s[k]))
                 for k in np.flatnonzero(playable(freqs, rate))] + extra
