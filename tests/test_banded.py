@@ -51,7 +51,8 @@ def test_every_preset_rings_in_tune_with_its_t60s(preset, rate):
     """Every mode at its frequency (1 cent) and T60 (5 %). A tube-tuned mode is measured as
     describe measures its heard envelope, from 30 ms until it has fallen 60 dB; describe gives it
     with the motor's discs open, so a preset with a motor is measured with the motor stopped (its
-    modulation: :func:`test_the_vibraphone_presets_motor_modulates_its_fundamental_as_modelled`)."""
+    modulation: :func:`test_the_vibraphone_presets_motor_modulates_its_fundamental_as_modelled`);
+    the other modes once the tube's own ringing near them (its resonance's T60) has died."""
     parameters = preset_parameters("banded", preset)
     if parameters.get("motor_rate_hz", 0.0) > 0.0:
         parameters = {**parameters, "motor_rate_hz": 0.0}
@@ -61,17 +62,42 @@ def test_every_preset_rings_in_tune_with_its_t60s(preset, rate):
     longest = max(m.t60_s for i, m in enumerate(sounding) if i != tuned)
     span = min(2.0, 1.2 * longest)
     heard_end = _heard_end_s(parameters, rate) if tuned is not None else 0.0
+    tube = design_bank(MODEL.resolve(parameters), rate).tube.design if tuned is not None else None
     x = raw(parameters, max(span, heard_end), rate)
     skip = int(0.03 * rate)  # past the mallet and the loops' start-up
+    partials = {}
     for k, mode in enumerate(sounding):
         if abs(mode.gain) < 0.05:  # a node of the strike or pick-up point: nothing to measure
             continue
         end = int((heard_end if k == tuned else span) * rate)
-        partial = measure_partial(x[skip:end], rate, mode.frequency_hz)
-        if partial.level_db < -100:
+        start = skip
+        if tuned is not None and k != tuned:  # after the tube's own ringing near this mode has died
+            start += int(tube.resonance_near(mode.frequency_hz)[1] * rate)
+        partials[k] = measure_partial(x[start:end], rate, mode.frequency_hz)
+    loudest = max(partial.level_db for partial in partials.values())
+    for k, partial in partials.items():
+        mode = sounding[k]
+        if partial.level_db < max(-100, loudest - 60):  # too weak beside the loudest to fit well
             continue
         assert abs(1200 * math.log2(partial.frequency_hz / mode.frequency_hz)) < 1.0, (mode, partial)
-        assert partial.t60_s == pytest.approx(mode.t60_s, rel=0.05), (mode, partial)
+        # a tube-tuned mode is two exponentials (the mode's, the tube's): one T60 of their sum
+        # moves by a few % with the span measured; its envelope is checked to 0.3 dB instead
+        assert partial.t60_s == pytest.approx(mode.t60_s, rel=0.1 if k == tuned else 0.05), (mode, partial)
+    if tuned is not None:
+        _assert_heard_envelope(x, parameters, rate, heard_end)
+
+
+def _assert_heard_envelope(x, parameters, rate, heard_end_s):
+    """The tube-tuned mode's envelope in the sound is describe's heard envelope (one scale and
+    phase), within 0.3 dB from 0.2 s until it has fallen 60 dB."""
+    bank = design_bank(MODEL.resolve(parameters), rate)
+    row = bank.tube.row
+    times = np.arange(0.2, heard_end_s, 0.05)
+    model = heard_envelope(bank.loops["out"][row], bank.tube.through_tube, bank.frequencies_hz[row],
+                           bank.t60s_s[row], bank.tube.design, times)
+    sound = _envelope(x, rate, bank.frequencies_hz[row])[(times * rate).astype(int)]
+    ratio_db = 20 * np.log10(np.abs(sound) / np.abs(model))
+    assert np.ptp(ratio_db) < 0.3, ratio_db
 
 
 def _envelope(x, rate, frequency_hz, cutoff_hz=40.0):
