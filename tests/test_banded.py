@@ -14,9 +14,9 @@ from barsynth.dsp.mallet import hertz_stiffness, mallet_pulse
 from barsynth.errors import ParameterError
 from barsynth.models import get_model
 from barsynth.exciters.strike import HARDEST_CONTACT_S, SOFTEST_CONTACT_S
-from barsynth.physics import bar_frequencies, mode_shape
 from barsynth.models.banded.design import design_bank
 from barsynth.models.banded.resonator import heard_end_s, heard_envelope
+from barsynth.physics import bar_frequencies, mode_shape
 from barsynth.presets import preset_names, preset_parameters
 
 MODEL = get_model("banded")

@@ -207,7 +207,7 @@ def heard_mode(direct: float, through: complex, frequency_hz: float, t60_s: floa
     end_s = heard_end_s(direct, through, frequency_hz, t60_s, tube)
     t = np.arange(0.0, end_s, 1.0 / HEARD_RATE)
     envelope = heard_envelope(direct, through, frequency_hz, t60_s, tube, t)
-    first, end = int(round(HEARD_FROM_S * HEARD_RATE)), t.size
+    first, end = round(HEARD_FROM_S * HEARD_RATE), t.size
     sound = np.real(envelope[first:end] * np.exp(2j * np.pi * HEARD_CARRIER_HZ * t[first:end]))
     partial = measure_partial(sound, HEARD_RATE, HEARD_CARRIER_HZ)
     heard_t60 = partial.t60_s
