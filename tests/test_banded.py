@@ -7,12 +7,15 @@ import math
 
 import numpy as np
 import pytest
+from scipy.signal import butter, sosfiltfilt
 
 from barsynth.analysis import measure_partial
 from barsynth.dsp.mallet import hertz_stiffness, mallet_pulse
 from barsynth.errors import ParameterError
 from barsynth.models import get_model
 from barsynth.exciters.strike import HARDEST_CONTACT_S, SOFTEST_CONTACT_S
+from barsynth.models.banded.design import design_bank
+from barsynth.models.banded.resonator import heard_end_s, heard_envelope
 from barsynth.physics import bar_frequencies, mode_shape
 from barsynth.presets import preset_names, preset_parameters
 
@@ -33,22 +36,102 @@ def test_physics_tuning_is_the_free_free_bar():
     assert [m.t60_s for m in modes] == pytest.approx(500 * math.log(1000) / (math.pi * expected), rel=1e-12)
 
 
+def _heard_end_s(parameters, rate):
+    """Where the tube-tuned mode's heard envelope has fallen 60 dB (the span describe's heard T60
+    is measured over: :func:`barsynth.models.banded.resonator.heard_mode`)."""
+    bank = design_bank(MODEL.resolve(parameters), rate)
+    row = bank.tube.row
+    return heard_end_s(bank.loops["out"][row], bank.tube.through_tube, bank.frequencies_hz[row],
+                       bank.t60s_s[row], bank.tube.design)
+
+
 @pytest.mark.parametrize("rate", [44100, 48000, 96000])
 @pytest.mark.parametrize("preset", preset_names("banded"))
 def test_every_preset_rings_in_tune_with_its_t60s(preset, rate):
+    """Every mode at its frequency (1 cent) and T60 (5 %). A tube-tuned mode is measured as
+    describe measures its heard envelope, from 30 ms until it has fallen 60 dB; describe gives it
+    with the motor's discs open, so a preset with a motor is measured with the motor stopped (its
+    modulation: :func:`test_the_vibraphone_presets_motor_modulates_its_fundamental_as_modelled`);
+    the other modes once the tube's own ringing near them (its resonance's T60) has died."""
     parameters = preset_parameters("banded", preset)
+    if parameters.get("motor_rate_hz", 0.0) > 0.0:
+        parameters = {**parameters, "motor_rate_hz": 0.0}
     modes = MODEL.describe(parameters, sample_rate=rate)
-    longest = max(m.t60_s for m in modes)
-    x = raw(parameters, min(2.0, 1.2 * longest), rate)
+    tuned = parameters.get("tube_mode", 1) - 1 if parameters.get("tube") == "on" else None
+    sounding = [m for m in modes if m.group == "mode"]
+    longest = max(m.t60_s for i, m in enumerate(sounding) if i != tuned)
+    span = min(2.0, 1.2 * longest)
+    heard_end = _heard_end_s(parameters, rate) if tuned is not None else 0.0
+    tube = design_bank(MODEL.resolve(parameters), rate).tube.design if tuned is not None else None
+    x = raw(parameters, max(span, heard_end), rate)
     skip = int(0.03 * rate)  # past the mallet and the loops' start-up
-    for mode in modes:
+    partials = {}
+    for k, mode in enumerate(sounding):
         if abs(mode.gain) < 0.05:  # a node of the strike or pick-up point: nothing to measure
             continue
-        partial = measure_partial(x[skip:], rate, mode.frequency_hz)
-        if partial.level_db < -100:
+        end = int((heard_end if k == tuned else span) * rate)
+        start = skip
+        if tuned is not None and k != tuned:  # after the tube's own ringing near this mode has died
+            start += int(tube.resonance_near(mode.frequency_hz)[1] * rate)
+        partials[k] = measure_partial(x[start:end], rate, mode.frequency_hz)
+    loudest = max(partial.level_db for partial in partials.values())
+    for k, partial in partials.items():
+        mode = sounding[k]
+        if partial.level_db < max(-100, loudest - 60):  # too weak beside the loudest to fit well
             continue
         assert abs(1200 * math.log2(partial.frequency_hz / mode.frequency_hz)) < 1.0, (mode, partial)
-        assert partial.t60_s == pytest.approx(mode.t60_s, rel=0.05), (mode, partial)
+        # a tube-tuned mode is two exponentials (the mode's, the tube's): one T60 of their sum
+        # moves by a few % with the span measured; its envelope is checked to 0.3 dB instead
+        assert partial.t60_s == pytest.approx(mode.t60_s, rel=0.1 if k == tuned else 0.05), (mode, partial)
+    if tuned is not None:
+        _assert_heard_envelope(x, parameters, rate, heard_end)
+
+
+def _assert_heard_envelope(x, parameters, rate, heard_end_s):
+    """The tube-tuned mode's envelope in the sound is describe's heard envelope (one scale and
+    phase), within 0.3 dB from 0.2 s until it has fallen 60 dB."""
+    bank = design_bank(MODEL.resolve(parameters), rate)
+    row = bank.tube.row
+    times = np.arange(0.2, heard_end_s, 0.05)
+    model = heard_envelope(bank.loops["out"][row], bank.tube.through_tube, bank.frequencies_hz[row],
+                           bank.t60s_s[row], bank.tube.design, times)
+    sound = _envelope(x, rate, bank.frequencies_hz[row])[(times * rate).astype(int)]
+    ratio_db = 20 * np.log10(np.abs(sound) / np.abs(model))
+    assert np.ptp(ratio_db) < 0.3, ratio_db
+
+
+def _envelope(x, rate, frequency_hz, cutoff_hz=40.0):
+    """The complex envelope of ``x`` around ``frequency_hz`` (zero-phase low-pass at ``cutoff_hz``)."""
+    t = np.arange(x.size) / rate
+    sos = butter(4, cutoff_hz / (rate / 2), output="sos")
+    z = x * np.exp(-2j * np.pi * frequency_hz * t)
+    return 2 * (sosfiltfilt(sos, z.real) + 1j * sosfiltfilt(sos, z.imag))
+
+
+def test_the_vibraphone_presets_motor_modulates_its_fundamental_as_modelled():
+    """With the discs closed (half a motor turn after each open) the fundamental is heard as the
+    bar's sound plus (1 - motor_depth) times the tube's (heard_envelope), open as with the motor
+    stopped: within 0.5 dB from 0.2 s to 1.5 s."""
+    rate = 48000
+    parameters = preset_parameters("banded", "vibraphone-bar")
+    motor_hz, depth = parameters["motor_rate_hz"], parameters["motor_depth"]
+    assert motor_hz > 0 and depth > 0
+    stopped = {**parameters, "motor_rate_hz": 0.0}
+    bank = design_bank(MODEL.resolve(parameters), rate)
+    row = bank.tube.row
+    f, t60, direct = bank.frequencies_hz[row], bank.t60s_s[row], bank.loops["out"][row]
+    on, off = _envelope(raw(parameters, 1.6, rate), rate, f), _envelope(raw(stopped, 1.6, rate), rate, f)
+    closed = (np.arange(1, 8) + 0.5) / motor_hz
+    opened = np.arange(1, 8) / motor_hz
+    bar = heard_envelope(direct, 0.0, f, t60, bank.tube.design, closed)
+    both = heard_envelope(direct, bank.tube.through_tube, f, t60, bank.tube.design, closed)
+    expected_db = 20 * np.log10(np.abs(bar + (1 - depth) * (both - bar)) / np.abs(both))
+    assert np.all(expected_db < -3.0)  # the tremolo is deep: the tube is most of the fundamental
+    at = (closed * rate).astype(int)
+    measured_db = 20 * np.log10(np.abs(on[at]) / np.abs(off[at]))
+    assert measured_db == pytest.approx(expected_db, abs=0.5)
+    at = (opened * rate).astype(int)
+    assert 20 * np.log10(np.abs(on[at]) / np.abs(off[at])) == pytest.approx(0.0, abs=0.5)
 
 
 def _mode_level(x, rate, frequency, t60, skip):

@@ -31,7 +31,7 @@ RATE = 48000
 ROSEWOOD = {"youngs_modulus_pa": 20e9, "density_kg_m3": 1000.0, "shear_modulus_pa": 1.33e9,
             "shear_coefficient": 5.0 / 6.0}
 MARIMBA = preset_parameters("banded", "concert-marimba-bar")  # rosewood 40 x 5 x 2 cm, 1 : 4 in Timoshenko
-RINGING = {**MARIMBA, "mode_t60s_s": (1.0,) * 4}  # every partial long enough to measure
+RINGING = {**MARIMBA, "tube": "none", "mode_t60s_s": (1.0,) * 4}  # the bar alone, every partial long enough to measure
 
 
 def raw(parameters, seconds, rate=RATE):
@@ -55,7 +55,7 @@ def theory_modes(count=4, points=250):
 def test_a_geometry_bar_rings_at_its_theorys_frequencies():
     expected = theory_modes()
     modes = MODEL.describe(RINGING, sample_rate=RATE)
-    described = np.array([m.frequency_hz for m in modes])
+    described = np.array([m.frequency_hz for m in modes if m.group == "mode"])  # (not the tube's entry)
     assert described == pytest.approx(expected, rel=1e-4)  # grids of 161/321 against 250/499 nodes
     assert described[1] / described[0] == pytest.approx(4.0, rel=1e-3)  # the preset's tuning
     x = raw(RINGING, 1.0)

@@ -109,6 +109,28 @@ class TubeDesign:
         return self.transfer(cmath.rect(r, 2.0 * math.pi * frequency_hz / self.sample_rate))
 
 
+    def resonance_near(self, frequency_hz: float) -> tuple[float, float]:
+        """The tube's resonance nearest ``frequency_hz`` (its first, or a higher one near an odd
+        multiple): ``(frequency_hz, t60_s)`` of the pole of ``1 / (1 + P W A z^-N)`` found by
+        Newton steps from ``e^{j 2 pi frequency_hz / fs}``."""
+        z = cmath.rect(1.0, 2.0 * math.pi * frequency_hz / self.sample_rate)
+        def loop(z: complex) -> complex:
+            reflect, trip = self._parts(z)
+            return 1.0 + reflect * trip
+
+        for _ in range(60):
+            h = 1e-7 * abs(z)
+            step = loop(z) * h / (loop(z + h) - loop(z))
+            if not cmath.isfinite(step):
+                return math.nan, math.nan
+            z -= step if abs(step) < 0.01 else 0.01 * step / abs(step)
+            if abs(step) < 1e-13:
+                break
+        r = abs(z)
+        t60_s = -3.0 / (self.sample_rate * math.log10(r)) if r < 1.0 else math.inf
+        return cmath.phase(z) * self.sample_rate / (2.0 * math.pi), t60_s
+
+
 def reflection_pole(radius_m: float, sample_rate: float, speed_m_s: float = SPEED_OF_SOUND_M_S) -> float:
     """The pole p of ``P(z) = (1 - p) / (1 - p z^-1)``, whose magnitude falls as 1 - (ka)^2 / 2 at
     low ka (Levine & Schwinger): p / (1 - p)^2 = (fs a / c)^2."""

@@ -151,3 +151,67 @@ def damper_factors(loops: np.ndarray, freqs: np.ndarray, t60s: np.ndarray, dampe
         a, _ = _a(z1, loop["eta"])
         factors[i] = 1.0 / abs(loop["gain"] * h * a * z1 ** -int(loop["delay"]))
     return factors
+
+
+HEARD_FROM_S = 0.03
+"""The heard decay is measured from this long after the strike (s): past the mallet's contact
+and the tube's entry, as barsynth's tests measure a struck mode."""
+HEARD_CARRIER_HZ, HEARD_RATE = 1000.0, 8000.0
+"""The heard envelope is measured on a cosine of this frequency (Hz) at this sample rate (Hz)."""
+
+
+def heard_envelope(direct: float, through: complex, frequency_hz: float, t60_s: float, tube: TubeDesign,
+                   times_s: np.ndarray) -> np.ndarray:
+    """The complex envelope (re ``e^{j 2 pi frequency_hz t}``) of a mode ringing at
+    ``frequency_hz`` with ``t60_s`` heard with its tube: its direct sound ``direct`` plus the
+    tube's, ``through`` (the tube's forced response, :attr:`TubeCoupling.through_tube`) less the
+    tube's own ringing that starts it from rest (the tube near its resonance as one pole, at
+    ``tube.frequency_hz`` with ``tube.t60_s``: its response to ``e^{s t}`` is ``H(s) (e^{s t} -
+    e^{p t})``), at ``times_s`` after the strike:
+
+        E(t) = e^{-a t} (direct + through (1 - e^{(a - b + j (w_tube - w)) t}))
+
+    ``a``, ``b``: the mode's and the tube's decay rates (ln 1000 / T60, 1/s)."""
+    a = math.log(1000.0) / t60_s
+    b = math.log(1000.0) / tube.t60_s
+    shift = 2.0 * math.pi * (tube.frequency_hz - frequency_hz)
+    start = 1.0 - np.exp((a - b + 1j * shift) * times_s)
+    return np.exp(-a * times_s) * (direct + through * start)
+
+
+def heard_end_s(direct: float, through: complex, frequency_hz: float, t60_s: float, tube: TubeDesign) -> float:
+    """When the heard envelope (:func:`heard_envelope`, same arguments) has fallen 60 dB below
+    its peak (s after the strike): the end of the span :func:`heard_mode` measures."""
+    t = np.arange(0.0, 3.0 * max(t60_s, tube.t60_s), 1.0 / HEARD_RATE)
+    size = np.abs(heard_envelope(direct, through, frequency_hz, t60_s, tube, t))
+    peak = int(np.argmax(size))
+    below = np.flatnonzero(size[peak:] < 1e-3 * size[peak])
+    return float(t[peak + int(below[0])]) if below.size else float(t[-1])
+
+
+def heard_mode(direct: float, through: complex, frequency_hz: float, t60_s: float,
+               tube: TubeDesign) -> tuple[float, float]:
+    """The tuned mode as it is heard with its tube: ``(amplitude, t60_s)`` as
+    :func:`barsynth.analysis.measure_partial` measures its heard envelope
+    (:func:`heard_envelope`, on a cosine of ``HEARD_CARRIER_HZ``) from ``HEARD_FROM_S`` after the
+    strike until it has fallen 60 dB below its peak, the amplitude taken back to the strike with
+    that T60.
+
+    The sum is two exponentials, not one: a tube slower than its mode (``b < a``) carries the sound
+    on after the mode has gone; a faster one blooms in over ``1 / (b - a)`` and the sum then decays
+    with the mode. Either way the heard decay is longer than the mode's own (pulled) T60, and the
+    heard amplitude lies between ``|direct|`` and ``|direct + through|``; its one T60 depends on
+    where it is measured from (hence ``HEARD_FROM_S``)."""
+    from ...analysis import measure_partial
+
+    end_s = heard_end_s(direct, through, frequency_hz, t60_s, tube)
+    t = np.arange(0.0, end_s, 1.0 / HEARD_RATE)
+    envelope = heard_envelope(direct, through, frequency_hz, t60_s, tube, t)
+    first, end = round(HEARD_FROM_S * HEARD_RATE), t.size
+    sound = np.real(envelope[first:end] * np.exp(2j * np.pi * HEARD_CARRIER_HZ * t[first:end]))
+    partial = measure_partial(sound, HEARD_RATE, HEARD_CARRIER_HZ)
+    heard_t60 = partial.t60_s
+    level = 10.0 ** (partial.level_db / 20.0)
+    if math.isfinite(heard_t60):
+        level *= 10.0 ** (3.0 * HEARD_FROM_S / heard_t60)
+    return float(level), float(heard_t60)
