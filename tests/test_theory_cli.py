@@ -111,11 +111,29 @@ def assert_one_line_error(result, *needles: str) -> None:
     (["--profile", "wavy"], ["profile = 'wavy'", "uniform, parabolic, circular"]),
     (["--theory", "thick"], ["theory = 'thick'", "euler-bernoulli, timoshenko"]),
     (["--theory", "timoshenko", "--poisson", "0.7"], ["poisson_ratio = 0.7 is out of range", "< 0.5"]),
-    (["--theory", "timoshenko", "--shear-coefficient", "0"], ["shear_coefficient = 0", "> 0 and <= 1"]),
+    (["--theory", "timoshenko", "--shear-coefficient", "0"], ["shear_coefficient = 0", "0.5 to 1"]),
+    (["--theory", "timoshenko", "--shear-coefficient", "1e-9"], ["shear_coefficient = 1e-09", "0.5 to 1"]),
     (["--theory", "timoshenko", "--shear-modulus", "-5"], ["shear_modulus_pa", "-5"]),
 ])
 def test_modes_bad_combinations(args, needles):
     assert_one_line_error(run("modes", *ROSEWOOD_BAR, *args), *needles)
+
+
+@pytest.mark.parametrize("length,thickness", [("1e300", "1e299"), ("1e-300", "1e-301")])
+@pytest.mark.parametrize("cut", [[], CUT])
+def test_sizes_outside_the_float_range_get_one_line(length, thickness, cut):
+    """(They had raised OverflowError and ZeroDivisionError: h^2 and L^2 alone leave the float range.)"""
+    r = run("modes", "--material", "steel", "--bc", "free-free", "--length", length, "--thickness", thickness,
+            "--theory", "timoshenko", *cut)
+    assert_one_line_error(r, "length_m")
+
+
+def test_the_shear_coefficient_range_is_the_tables():
+    from barsynth.models import rows
+    from barsynth.physics import theory, timoshenko
+
+    row = rows.theory_parameters()[2]
+    assert (row.minimum, row.maximum) == timoshenko.SHEAR_COEFFICIENT_RANGE and rows.THEORIES == theory.THEORIES
 
 
 def test_timoshenko_without_shear_is_refused():
@@ -140,3 +158,16 @@ def test_tune_undercut_in_timoshenko():
                               "--poisson", "0.3"), "given with theory = euler-bernoulli")
     assert_one_line_error(run("tune-undercut", "--youngs-modulus", "20e9", "--density", "1000", "--length", "0.4",
                               "--thickness", "0.02", "--theory", "timoshenko"), "shear_modulus_pa is missing")
+
+
+def test_the_fd_bar_tune_undercut_offers_rings_as_tuned():
+    """The JSON's fd_parameters (the "hear it" line) carry the theory and the shear stiffness: the
+    fd model they describe rings at the target ratio (it had rung 4.104 with fd's default G)."""
+    from barsynth.models import get_model
+
+    r = run("tune-undercut", "--material", "rosewood", "--length", "0.4", "--thickness", "0.02", "--width", "0.05",
+            "--theory", "timoshenko", "--json")
+    settings = json.loads(r.stdout)["fd_parameters"]
+    assert settings["theory"] == "timoshenko" and settings["shear_modulus_pa"] == pytest.approx(1.33e9)
+    modes = get_model("fd").describe({**settings, "points": 160}, sample_rate=44100)
+    assert modes[1].frequency_hz / modes[0].frequency_hz == pytest.approx(4.0, rel=2e-3)

@@ -381,7 +381,7 @@ def modes(material, youngs_modulus_pa, density_kg_m3, length_m, thickness_m, wid
     # the Euler-Bernoulli eigenvalue of a uniform bar ringing at f: the textbook lambda for a thin uniform bar
     a = bending_wave_constant(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3,
                               thickness_m=thickness_m)
-    lams = [math.sqrt(2.0 * math.pi * f * length_m ** 2 / a) for f in freqs]
+    lams = [length_m * math.sqrt(2.0 * math.pi * float(f) / a) for f in freqs]  # (L outside: L^2 can leave float range)
     if theory == "euler-bernoulli" and cut is None:
         from .physics import lambdas
 
@@ -889,9 +889,10 @@ def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thicknes
                  shear_modulus_pa=shear.get("shear_modulus_pa"), shear_coefficient=shear.get("shear_coefficient"),
                  **bar)
     settings = {**bar, "profile": profile, "undercut_depth": round(tuned.profile.depth, 6), "undercut_width": cut_width}
-    fd_knows_theory = "theory" in FD_TABLE
-    if theory != "euler-bernoulli" and fd_knows_theory:
+    if theory != "euler-bernoulli":  # the fd bar that rings as tuned: its theory and shear stiffness too
         settings["theory"] = theory
+        settings["shear_modulus_pa"] = FD_TABLE["shear_modulus_pa"].validate(shear["shear_modulus_pa"])
+        settings["shear_coefficient"] = FD_TABLE["shear_coefficient"].validate(shear["shear_coefficient"])
     if as_json:
         _json_out({**tuned.to_json(), **({"poisson_ratio": shear["poisson_ratio"]} if shear else {}),
                    "fd_parameters": settings})
@@ -904,8 +905,6 @@ def tune_undercut(material, youngs_modulus_pa, density_kg_m3, length_m, thicknes
         click.echo(f"{n:>4} {f:>15.3f} {r:>8.4f}")
     ratios = tuned.ratios
     click.echo(f"f2/f1 = {ratios[1]:.4f}" + (f", f3/f1 = {ratios[2]:.4f}" if ratios.size > 2 else ""))
-    if theory != "euler-bernoulli" and not fd_knows_theory:
-        click.echo("note: the fd model renders Euler-Bernoulli bars: there this depth rings sharper than tuned")
     click.echo("hear it: barsynth render fd " + " ".join(f"--set {k}={_shown(v)}" for k, v in settings.items())
                + " -o tuned.wav")
 

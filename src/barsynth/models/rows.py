@@ -92,7 +92,7 @@ def theory_parameters(note: str = "", when: Any = (), default: str = "euler-bern
         Parameter("shear_modulus_pa", "Pa", 0.0, 4e11, 0.0,
                   f"{note}shear modulus G (a wood's across the grain, G_LT); a material sets it; 0: an isotropic "
                   "solid's, E / (2 (1 + 0.33))", when=thick),
-        Parameter("shear_coefficient", "", 0.5, 1.0, 5.0 / 6.0,
+        Parameter("shear_coefficient", "", 0.5, 1.0, 5.0 / 6.0,  # physics.timoshenko.SHEAR_COEFFICIENT_RANGE
                   f"{note}the cross-section's shear coefficient kappa: 5/6 for a rectangle, Cowper's "
                   "10 (1 + nu) / (12 + 11 nu) for an isotropic one (a material sets it)", when=thick),
     ]
@@ -102,7 +102,9 @@ def shear_of(p: Any) -> tuple[float, float]:
     """The shear modulus (Pa) and shear coefficient of a Timoshenko bar's record ``p`` (rows of
     :func:`theory_parameters`): as given or as its material set them; a shear modulus of 0 is an
     isotropic solid's with :data:`ASSUMED_POISSON_RATIO`."""
-    g = p.shear_modulus_pa or p.youngs_modulus_pa / (2.0 * (1.0 + ASSUMED_POISSON_RATIO))
+    from ..physics.timoshenko import isotropic_shear_modulus
+
+    g = p.shear_modulus_pa or isotropic_shear_modulus(p.youngs_modulus_pa, ASSUMED_POISSON_RATIO)
     return float(g), float(p.shear_coefficient)
 
 

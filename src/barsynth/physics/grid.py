@@ -40,6 +40,17 @@ MAX_POINTS = 1000
 """Beyond this the eigenvalues' rounding (the operator's condition grows as points^4) costs
 more than the finer grid gains."""
 MAX_EXTRAPOLATED_POINTS = 300
+GRID_LENGTH_M = (1e-4, 1e3)
+"""The lengths a grid is built for (m): far outside them its matrices leave the float range."""
+
+
+def check_grid_size(length_m: float, thickness_m: float) -> tuple[float, float]:
+    """``length_m`` within :data:`GRID_LENGTH_M` and ``thickness_m`` above 0 and at most the length,
+    as one-line :class:`ParameterError` s."""
+    length_m = check_number("length_m", length_m, "m", minimum=GRID_LENGTH_M[0], maximum=GRID_LENGTH_M[1])
+    thickness_m = check_number("thickness_m", thickness_m, "m", minimum=0.0, minimum_exclusive=True,
+                               maximum=length_m)
+    return length_m, thickness_m
 
 
 def _ends(bc: str) -> tuple[str, str]:
@@ -115,8 +126,7 @@ def bar_grid(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: float,
     points = check_whole("points", points, "nodes", minimum=MIN_POINTS, maximum=MAX_POINTS)
     youngs_modulus_pa = check_number("youngs_modulus_pa", youngs_modulus_pa, "Pa", minimum=0.0, minimum_exclusive=True)
     density_kg_m3 = check_number("density_kg_m3", density_kg_m3, "kg/m^3", minimum=0.0, minimum_exclusive=True)
-    length_m = check_number("length_m", length_m, "m", minimum=0.0, minimum_exclusive=True)
-    thickness_m = check_number("thickness_m", thickness_m, "m", minimum=0.0, minimum_exclusive=True)
+    length_m, thickness_m = check_grid_size(length_m, thickness_m)
     width_m = check_number("width_m", width_m, "m", minimum=0.0, minimum_exclusive=True)
     profile = profile or Profile()
     n = points

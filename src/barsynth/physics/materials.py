@@ -116,7 +116,9 @@ def _load() -> dict[str, Material]:
             nu = _positive_number(name, "poisson_ratio", nu)
             if nu >= 0.5:
                 raise ValueError(f"materials.toml: [{name}] poisson_ratio = {nu!r} must be < 0.5")
-            g = e / (2.0 * (1.0 + nu))
+            from .timoshenko import isotropic_shear_modulus
+
+            g = isotropic_shear_modulus(e, nu)
         out[name] = Material(
             name=name,
             youngs_modulus_pa=e,

@@ -21,6 +21,7 @@ from ..checks import check_number, show_value
 from ..errors import ParameterError
 from .materials import PLAIN_SHEAR_COEFFICIENT
 from .profiles import Profile
+from .timoshenko import SHEAR_COEFFICIENT_RANGE, isotropic_shear_modulus
 from .timoshenko import shear_coefficient as cowper_shear_coefficient
 
 THEORIES = ("euler-bernoulli", "timoshenko")
@@ -58,14 +59,14 @@ def shear_constants(*, youngs_modulus_pa: float, poisson_ratio: float | None = N
                              "follows: G = E / (2 (1 + nu)))")
     kappa = None
     if shear_coefficient is not None:
-        kappa = check_number("shear_coefficient", shear_coefficient, "(dimensionless)", minimum=0.0,
-                             minimum_exclusive=True, maximum=1.0)
+        kappa = check_number("shear_coefficient", shear_coefficient, "(dimensionless)",
+                             minimum=SHEAR_COEFFICIENT_RANGE[0], maximum=SHEAR_COEFFICIENT_RANGE[1])
     if poisson_ratio is not None:
         nu = check_number("poisson_ratio", poisson_ratio, "(dimensionless)", minimum=0.0, maximum=0.5,
                           maximum_exclusive=True)
         youngs_modulus_pa = check_number("youngs_modulus_pa", youngs_modulus_pa, "Pa", minimum=0.0,
                                          minimum_exclusive=True)
-        return youngs_modulus_pa / (2.0 * (1.0 + nu)), cowper_shear_coefficient(nu) if kappa is None else kappa
+        return isotropic_shear_modulus(youngs_modulus_pa, nu), cowper_shear_coefficient(nu) if kappa is None else kappa
     if shear_modulus_pa is not None:
         shear_modulus_pa = check_number("shear_modulus_pa", shear_modulus_pa, "Pa", minimum=0.0,
                                         minimum_exclusive=True)
@@ -131,7 +132,8 @@ def bar_modes_hz(*, theory: str, youngs_modulus_pa: float, density_kg_m3: float,
                              "in Pa (above 0): give G, a Poisson ratio, or a material that has one")
     shear_modulus_pa = check_number("shear_modulus_pa", shear_modulus_pa, "Pa", minimum=0.0, minimum_exclusive=True)
     kappa = PLAIN_SHEAR_COEFFICIENT if shear_coefficient is None else check_number(
-        "shear_coefficient", shear_coefficient, "(dimensionless)", minimum=0.0, minimum_exclusive=True, maximum=1.0)
+        "shear_coefficient", shear_coefficient, "(dimensionless)", minimum=SHEAR_COEFFICIENT_RANGE[0],
+        maximum=SHEAR_COEFFICIENT_RANGE[1])
     shear = dict(shear_modulus_pa=shear_modulus_pa, shear_coefficient=kappa)
     if is_uniform(profile):
         from .timoshenko import timoshenko_frequencies

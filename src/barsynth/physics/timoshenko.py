@@ -80,6 +80,15 @@ def shear_coefficient(poisson_ratio: float) -> float:
     return 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu)
 
 
+def isotropic_shear_modulus(youngs_modulus_pa: float, poisson_ratio: float) -> float:
+    """Shear modulus ``G = E / (2 (1 + ν))`` of an isotropic solid (Pa)."""
+    return youngs_modulus_pa / (2.0 * (1.0 + poisson_ratio))
+
+
+SHEAR_COEFFICIENT_RANGE = (0.5, 1.0)
+"""The shear coefficients barsynth's options and parameter tables take (Cowper's rectangle: 0.83-0.87)."""
+
+
 def _wavenumbers(b: np.ndarray, r2: float, s2: float) -> tuple[np.ndarray, ...]:
     """``(μ_β, D_β, μ_α, D_α)`` at frequencies ``b``: ``μ = k²`` of each pair, ``D = μ + b² s²``,
     each without cancellation (``μ_β = −β² < 0``, ``D_β < 0 < D_α``)."""
@@ -328,7 +337,8 @@ def timoshenko_frequencies(
     name = _check_bc(bc)
     n = check_whole("count", count, "modes", 1, MAX_COUNT, integral_floats=True)
     ratio = e / (kappa * g)
-    r2 = thickness**2 / (12.0 * length**2)
+    slenderness = thickness / length  # (h / L first: h^2 and L^2 alone leave the float range for extreme sizes)
+    r2 = slenderness**2 / 12.0
     s2 = r2 * ratio
     if not (math.isfinite(ratio) and ratio > 0.0 and r2 > 0.0 and s2 > 0.0 and r2 * s2 > 0.0):
         raise ParameterError(
@@ -337,7 +347,10 @@ def timoshenko_frequencies(
             "E / (kappa G) and (h / L)^4 E / (kappa G) positive normal floats")
     left, right = name.split("-")
     b = _bar_roots(r2, s2, left, right, n)
-    scale = math.sqrt(e / rho) * thickness / (math.sqrt(12.0) * length**2) / (2.0 * math.pi)
+    scale = math.sqrt(e / rho) * slenderness / length / (math.sqrt(12.0) * 2.0 * math.pi)
+    if not (math.isfinite(scale) and scale > 0.0):
+        raise ParameterError(f"parameter length_m = {length_m!r} is out of range for thickness_m = {thickness_m!r}; "
+                             "allowed: sizes whose frequencies are finite positive floats (m)")
     freqs = b * scale
     if not np.all(np.isfinite(freqs) & (freqs > 0.0)):
         raise ParameterError(

@@ -35,7 +35,15 @@ import numpy as np
 
 from ..checks import check_number, check_whole, show_value
 from ..errors import ParameterError
-from .grid import MAX_EXTRAPOLATED_POINTS, MAX_POINTS, MIN_POINTS, _ends, interpolation, rigid_mode_count
+from .grid import (
+    MAX_EXTRAPOLATED_POINTS,
+    MAX_POINTS,
+    MIN_POINTS,
+    _ends,
+    check_grid_size,
+    interpolation,
+    rigid_mode_count,
+)
 from .profiles import Profile
 
 __all__ = ["TwoFieldGrid", "timoshenko_grid", "timoshenko_grid_modes", "two_field_eigen"]
@@ -104,8 +112,7 @@ def timoshenko_grid(*, youngs_modulus_pa: float, density_kg_m3: float, shear_mod
     rho = check_number("density_kg_m3", density_kg_m3, "kg/m^3", **positive)
     g = check_number("shear_modulus_pa", shear_modulus_pa, "Pa", **positive)
     kappa = check_number("shear_coefficient", shear_coefficient, "", **positive, maximum=1.0)
-    length_m = check_number("length_m", length_m, "m", **positive)
-    thickness_m = check_number("thickness_m", thickness_m, "m", **positive)
+    length_m, thickness_m = check_grid_size(length_m, thickness_m)
     width_m = check_number("width_m", width_m, "m", **positive)
     profile = profile or Profile()
     n = points

@@ -78,7 +78,7 @@ def tune_undercut(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: f
         raise ParameterError("parameter shear_modulus_pa is missing; theory = timoshenko needs the shear modulus G "
                              "in Pa (above 0): give G, a Poisson ratio, or a material that has one")
     elif shear_coefficient is None:
-        shear_coefficient = 5.0 / 6.0
+        shear_coefficient = PLAIN_SHEAR_COEFFICIENT
     count = check_whole("count", count, "modes", minimum=2, maximum=24)
     if not (isinstance(target_ratio, (int, float)) and math.isfinite(target_ratio)):
         raise ParameterError(f"parameter target_ratio = {target_ratio!r} is not a number; allowed: above 2.756")
