@@ -21,6 +21,7 @@ import numpy as np
 
 from ..checks import check_whole
 from ..errors import ParameterError
+from .materials import PLAIN_SHEAR_COEFFICIENT
 from .profiles import THINNEST, Profile
 
 
