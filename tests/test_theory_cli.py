@@ -171,3 +171,13 @@ def test_the_fd_bar_tune_undercut_offers_rings_as_tuned():
     assert settings["theory"] == "timoshenko" and settings["shear_modulus_pa"] == pytest.approx(1.33e9)
     modes = get_model("fd").describe({**settings, "points": 160}, sample_rate=44100)
     assert modes[1].frequency_hz / modes[0].frequency_hz == pytest.approx(4.0, rel=2e-3)
+
+
+def test_tune_undercut_with_g_alone_takes_a_rectangle_s_kappa():
+    from barsynth.physics.undercut import tune_undercut
+
+    bar = {"youngs_modulus_pa": 20e9, "density_kg_m3": 1000.0, "length_m": 0.4, "thickness_m": 0.02, "width_m": 0.05,
+           "theory": "timoshenko", "shear_modulus_pa": 1.33e9}
+    alone = tune_undercut(**bar)
+    given = tune_undercut(**bar, shear_coefficient=5 / 6)
+    assert alone.profile.depth == given.profile.depth and alone.ratios[1] == pytest.approx(4.0, abs=1e-9)
