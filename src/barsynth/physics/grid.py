@@ -45,11 +45,11 @@ GRID_LENGTH_M = (1e-4, 1e3)
 
 
 def check_grid_size(length_m: float, thickness_m: float) -> tuple[float, float]:
-    """``length_m`` within :data:`GRID_LENGTH_M` and ``thickness_m`` above 0 and at most the length,
-    as one-line :class:`ParameterError` s."""
+    """``length_m`` within :data:`GRID_LENGTH_M` and ``thickness_m`` above 0 and at most
+    :data:`GRID_LENGTH_M`'s top, as one-line :class:`ParameterError` s."""
     length_m = check_number("length_m", length_m, "m", minimum=GRID_LENGTH_M[0], maximum=GRID_LENGTH_M[1])
     thickness_m = check_number("thickness_m", thickness_m, "m", minimum=0.0, minimum_exclusive=True,
-                               maximum=length_m)
+                               maximum=GRID_LENGTH_M[1])
     return length_m, thickness_m
 
 

@@ -337,8 +337,10 @@ def timoshenko_frequencies(
     name = _check_bc(bc)
     n = check_whole("count", count, "modes", 1, MAX_COUNT, integral_floats=True)
     ratio = e / (kappa * g)
-    slenderness = thickness / length  # (h / L first: h^2 and L^2 alone leave the float range for extreme sizes)
-    r2 = slenderness**2 / 12.0
+    try:  # (for extreme sizes h^2 and L^2 alone leave the float range: one line, below)
+        r2 = thickness**2 / (12.0 * length**2)
+    except (OverflowError, ZeroDivisionError):
+        r2 = math.nan
     s2 = r2 * ratio
     if not (math.isfinite(ratio) and ratio > 0.0 and r2 > 0.0 and s2 > 0.0 and r2 * s2 > 0.0):
         raise ParameterError(
@@ -347,7 +349,10 @@ def timoshenko_frequencies(
             "E / (kappa G) and (h / L)^4 E / (kappa G) positive normal floats")
     left, right = name.split("-")
     b = _bar_roots(r2, s2, left, right, n)
-    scale = math.sqrt(e / rho) * slenderness / length / (math.sqrt(12.0) * 2.0 * math.pi)
+    try:
+        scale = math.sqrt(e / rho) * thickness / (math.sqrt(12.0) * length**2) / (2.0 * math.pi)
+    except (OverflowError, ZeroDivisionError):
+        scale = math.nan
     if not (math.isfinite(scale) and scale > 0.0):
         raise ParameterError(f"parameter length_m = {length_m!r} is out of range for thickness_m = {thickness_m!r}; "
                              "allowed: sizes whose frequencies are finite positive floats (m)")
