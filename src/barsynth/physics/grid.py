@@ -228,14 +228,22 @@ def grid_modes(*, youngs_modulus_pa: float, density_kg_m3: float, length_m: floa
     >>> (f / f[0]).round(4).tolist()
     [1.0, 2.7565, 5.4039]
     """
+    bar = dict(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3, length_m=length_m,
+               thickness_m=thickness_m, width_m=width_m, bc=bc, profile=profile)
+    return extrapolated_modes(lambda n: bar_grid(points=n, **bar), count=count, points=points,
+                              extrapolate=extrapolate)
+
+
+def extrapolated_modes(make_grid, *, count: int, points: int, extrapolate: bool) -> np.ndarray:
+    """Mode frequencies (Hz) of the grid ``make_grid(points)`` (either kind: :func:`grid_eigen`
+    solves both), with ``extrapolate`` the ``dx^2`` error removed by Richardson extrapolation
+    from ``points`` and ``2 points - 1`` nodes."""
     count = check_whole("count", count, "modes", minimum=1)
     if extrapolate and not MIN_POINTS <= points <= MAX_EXTRAPOLATED_POINTS:
         raise ParameterError(f"parameter points = {show_value(points)} is out of range; allowed: {MIN_POINTS} to "
                              f"{MAX_EXTRAPOLATED_POINTS} with extrapolation (the finer grid doubles them)")
-    bar = dict(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3, length_m=length_m,
-               thickness_m=thickness_m, width_m=width_m, bc=bc, profile=profile)
-    coarse = grid_eigen(bar_grid(points=points, **bar), count)[0] / (2.0 * math.pi)
+    coarse = grid_eigen(make_grid(points), count)[0] / (2.0 * math.pi)
     if not extrapolate:
         return coarse
-    fine = grid_eigen(bar_grid(points=2 * points - 1, **bar), count)[0] / (2.0 * math.pi)
+    fine = grid_eigen(make_grid(2 * points - 1), count)[0] / (2.0 * math.pi)
     return (4.0 * fine - coarse) / 3.0

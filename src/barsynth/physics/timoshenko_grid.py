@@ -33,14 +33,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import check_number, check_whole, show_value
+from ..checks import check_number, check_whole
 from ..errors import ParameterError
 from .grid import (
-    MAX_EXTRAPOLATED_POINTS,
     MAX_POINTS,
     MIN_POINTS,
     _ends,
     check_grid_size,
+    extrapolated_modes,
     interpolation,
     rigid_mode_count,
 )
@@ -245,15 +245,8 @@ def timoshenko_grid_modes(*, youngs_modulus_pa: float, density_kg_m3: float, she
     >>> (f / f[0]).round(3).tolist()  # Euler–Bernoulli: 1, 2.757, 5.404
     [1.0, 2.599, 4.714]
     """
-    count = check_whole("count", count, "modes", minimum=1)
-    if extrapolate and not MIN_POINTS <= points <= MAX_EXTRAPOLATED_POINTS:
-        raise ParameterError(f"parameter points = {show_value(points)} is out of range; allowed: {MIN_POINTS} to "
-                             f"{MAX_EXTRAPOLATED_POINTS} with extrapolation (the finer grid doubles them)")
     bar = dict(youngs_modulus_pa=youngs_modulus_pa, density_kg_m3=density_kg_m3, shear_modulus_pa=shear_modulus_pa,
                shear_coefficient=shear_coefficient, length_m=length_m, thickness_m=thickness_m, width_m=width_m,
                bc=bc, profile=profile)
-    coarse = two_field_eigen(timoshenko_grid(points=points, **bar), count)[0] / (2.0 * math.pi)
-    if not extrapolate:
-        return coarse
-    fine = two_field_eigen(timoshenko_grid(points=2 * points - 1, **bar), count)[0] / (2.0 * math.pi)
-    return (4.0 * fine - coarse) / 3.0
+    return extrapolated_modes(lambda n: timoshenko_grid(points=n, **bar), count=count, points=points,
+                              extrapolate=extrapolate)
