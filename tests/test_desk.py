@@ -249,3 +249,27 @@ def test_mode_list_reads_the_modes():
 def test_bad_input_names_the_parameter(call, name):
     with pytest.raises(ParameterError, match=f"parameter {name.replace('[', '.').replace(']', '.')}"):
         call()
+
+
+def test_held_force_gives_the_exact_continuous_response():
+    """Zero-order hold: under a constant force the summed output is the mode's velocity, exactly."""
+    frequency_hz, q, gain = 440.0, 30.0, 0.01
+    omega = 2 * math.pi * frequency_hz
+    t60 = 2.0 * q * math.log(1000.0) / omega
+    bank = desk_bank(_one_mode(frequency_hz, t60, gain), SAMPLE_RATE)
+    out = np.empty(5000)
+    process_desk(np.full(5000, 2.0), out, bank)
+    t = np.arange(1, 5001) / SAMPLE_RATE
+    sigma, omega_d = omega / (2 * q), omega * math.sqrt(1 - 0.25 / q ** 2)
+    velocity = 2.0 * gain / omega_d * np.exp(-sigma * t) * np.sin(omega_d * t)
+    np.testing.assert_allclose(np.cumsum(out) / SAMPLE_RATE, velocity, rtol=0, atol=1e-12 * np.max(np.abs(velocity)))
+    assert bank.state[0, 1] == pytest.approx(velocity[-1], rel=1e-9)
+
+
+def test_docstring_examples():
+    import doctest
+
+    import barsynth.models.ruler.desk as desk_module
+
+    result = doctest.testmod(desk_module)
+    assert result.attempted >= 5 and result.failed == 0
