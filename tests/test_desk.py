@@ -8,9 +8,20 @@ import numpy as np
 import pytest
 
 from barsynth.errors import ParameterError
-from barsynth.models.ruler.desk import (AIR_DENSITY_KG_M3, DESK_NAMES, DESKS, MAX_MODE_FRACTION, Desk, DeskModes,
-                                        contact_restitution, desk_bank, desk_mode_list, desk_modes, process_desk,
-                                        reset_desk)
+from barsynth.models.ruler.desk import (
+    AIR_DENSITY_KG_M3,
+    DESK_NAMES,
+    DESKS,
+    MAX_MODE_FRACTION,
+    Desk,
+    DeskModes,
+    contact_restitution,
+    desk_bank,
+    desk_mode_list,
+    desk_modes,
+    process_desk,
+    reset_desk,
+)
 
 SAMPLE_RATE = 48000.0
 
@@ -85,7 +96,7 @@ def test_t60_is_that_of_q():
 def test_measured_decay_of_an_isolated_mode(frequency_hz, t60_s):
     duration = min(1.2 * t60_s, 1.0)
     y = _impulse_response(_one_mode(frequency_hz, t60_s), int(duration * SAMPLE_RATE))
-    period = int(round(4 * SAMPLE_RATE / frequency_hz))  # frames of about four periods
+    period = round(4 * SAMPLE_RATE / frequency_hz)  # frames of about four periods
     frames = y[: (y.size // period) * period].reshape(-1, period)
     level_db = 10.0 * np.log10(np.mean(frames ** 2, axis=1))
     t = (np.arange(frames.shape[0]) + 0.5) * period / SAMPLE_RATE

@@ -143,10 +143,9 @@ class Desk:
     source: str
 
     def __post_init__(self) -> None:
-        for field in ("youngs_modulus_pa", "density_kg_m3", "thickness_m", "length_m", "width_m",
-                      "contact_stiffness_n_m2"):
-            unit = {"youngs_modulus_pa": "Pa", "density_kg_m3": "kg/m^3", "contact_stiffness_n_m2": "N/m^2"}
-            check_number(field, getattr(self, field), unit.get(field, "m"), minimum=0.0, minimum_exclusive=True)
+        for field, unit in (("youngs_modulus_pa", "Pa"), ("density_kg_m3", "kg/m^3"), ("thickness_m", "m"),
+                            ("length_m", "m"), ("width_m", "m"), ("contact_stiffness_n_m2", "N/m^2")):
+            check_number(field, getattr(self, field), unit, minimum=0.0, minimum_exclusive=True)
         check_number("poisson_ratio", self.poisson_ratio, "", minimum=0.0, maximum=0.5, maximum_exclusive=True)
         check_number("loss_factor", self.loss_factor, "", minimum=0.0, maximum=1.0, minimum_exclusive=True)
         check_number("contact_damping_n_s_m2", self.contact_damping_n_s_m2, "N s/m^2", minimum=0.0)
