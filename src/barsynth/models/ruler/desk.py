@@ -33,23 +33,24 @@ frequency such modes radiate from their edges and corners, weaker than the odd-o
 (C. E. Wallace, JASA 51, 1972, 946-952), and this one number stands for that. The
 pressure at ``r = 1 m`` is the monopole estimate ``p = rho_air V'' / (4 pi r)``, times the
 open top's short-circuit factor ``s = k d / sqrt(1 + (k d)^2)`` (``k = omega / c_air``,
-``d = (a + b) / 4``, assumed): a top open below radiates from both faces, and where its size
-is small against the wavelength the two cancel to a dipole, whose pressure falls as ``k d``
-(P. M. Morse and K. U. Ingard, *Theoretical Acoustics*, 1968, sec. 7.1); without it a 1 mm
-steel top's 8 Hz mode would ring as strong infrasound. On the upper side of the top (where
+``d = (a + b) / 4``; this form and ``d`` assumed): a top open below radiates from both faces,
+and where it is small against the wavelength the two cancel to a dipole, whose pressure is
+the monopole's times about ``k d`` (P. M. Morse and K. U. Ingard, *Theoretical Acoustics*,
+1968, ch. 7); without it a 1 mm steel top's 8 Hz mode would ring as strong infrasound. On the upper side of the top (where
 the ruler and the listener are) a top pushed down gives a rarefaction, so for a force ``F``
 at ``(x0, y0)``
 
-    q'' + (omega/Q) q' + omega^2 q = W(x0, y0) F / M,
-    p = gain q_r''  with  gain = -s rho_air a b c_m c_n W(x0, y0) / (4 pi r M)   (Pa/N),
+    q'' + (omega/Q) q' + omega^2 q = W(x0, y0) F / M,    p = -s rho_air a b c_m c_n q'' / (4 pi r),
 
-i.e. each mode is ``x'' + (omega/Q) x' + omega^2 x = gain F`` with the output ``x''`` in Pa;
+i.e. with ``x = -s rho_air a b c_m c_n q / (4 pi r)`` each mode is
+``x'' + (omega/Q) x' + omega^2 x = gain F``, ``gain = -s rho_air a b c_m c_n W(x0, y0) / (4 pi r M)``
+(Pa/N), and its pressure is ``x''``;
 ``|gain|`` is the mode's pressure per newton well above its resonance, ``|gain| Q`` at it.
 
 Discretisation. Each mode's state ``(x, x')`` advances by the exact zero-order-hold solution
 over one sample (the force held constant over the sample): ``s <- e^{AT} s + Gamma F``. The
-output is the mode's mean acceleration over that sample, ``(x'[n+1] - x'[n]) / T``, which
-is exact for a held force and has no instantaneous feed-through spike. Modes at or above
+output is the mode's mean acceleration over that sample, ``(x'[n+1] - x'[n]) / T``: exact
+for a held force, and free of the question which side of a force step a point sample takes. Modes at or above
 ``0.45 sample_rate`` are dropped (muted, never folded).
 
 Contact. ``contact_stiffness_n_m2`` (N/m per metre of ruler lying on the desk) and
