@@ -80,8 +80,8 @@ from ...physics.materials import material
 
 __all__ = ["AIR_DENSITY_KG_M3", "DESKS", "DESK_NAMES", "EDGE_RADIATION_FACTOR", "LISTENING_DISTANCE_M",
            "MAX_MODE_FRACTION", "REFERENCE_RULER_KG_M", "SPEED_OF_SOUND_M_S", "Desk", "DeskBank", "DeskModes",
-           "contact_damping_for", "contact_restitution", "contact_restitution_from", "desk_bank", "desk_mode_list", "desk_modes",
-           "process_desk", "reset_desk"]
+           "contact_damping_for", "contact_restitution", "contact_restitution_from", "desk_bank", "desk_mode_list",
+           "desk_modes", "process_desk", "reset_desk"]
 
 AIR_DENSITY_KG_M3 = 1.204
 """Air at 20 degC and 101.325 kPa (kg/m^3; ISO 2533 standard-atmosphere value at 20 degC)."""
