@@ -36,9 +36,9 @@ open top's short-circuit factor ``s = k d / sqrt(1 + (k d)^2)`` (``k = omega / c
 ``d = (a + b) / 4``; this form and ``d`` assumed): a top open below radiates from both faces,
 and where it is small against the wavelength the two cancel to a dipole, whose pressure is
 the monopole's times about ``k d`` (P. M. Morse and K. U. Ingard, *Theoretical Acoustics*,
-1968, ch. 7); without it a 1 mm steel top's 8 Hz mode would ring as strong infrasound. On the upper side of the top (where
-the ruler and the listener are) a top pushed down gives a rarefaction, so for a force ``F``
-at ``(x0, y0)``
+1968, ch. 7); without it a 1 mm steel top's 8 Hz mode would ring as strong infrasound.
+On the upper side of the top (where the ruler and the listener are) a top pushed down gives a
+rarefaction, so for a force ``F`` at ``(x0, y0)``
 
     q'' + (omega/Q) q' + omega^2 q = W(x0, y0) F / M,    p = -s rho_air a b c_m c_n q'' / (4 pi r),
 
@@ -232,7 +232,8 @@ def _make_desks() -> dict[str, Desk]:
         Desk("oak", "An oak table top, 30 mm thick, 1.6 m x 0.8 m, grain along its length, on legs.",
              oak_e, 0.63 * 1120.0, oak_nu, 0.030, 1.6, 0.8, 0.015,
              3e8, contact_damping_for(3e8, 0.6),
-             f"Northern red oak, {wh}: MOE 12.5 GPa, G 0.63, E_T/E_L 0.082 and nu_LT 0.448 (red-oak group); {plate_note}. "
+             f"Northern red oak, {wh}: MOE 12.5 GPa, G 0.63, E_T/E_L 0.082 and nu_LT 0.448 (red-oak group); "
+             f"{plate_note}. "
              "Size and thickness: assumed. Loss factor 0.015: assumed (CHP wood eta 0.008-0.01 plus mounting). "
              + contact.format(e=0.6)),
         Desk("steel", "A steel desk: a 1 mm sheet-steel top, 1.2 m x 0.6 m, on a frame (simply supported).",
