@@ -22,9 +22,9 @@ import sys
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # before barsynth imports numba
 
-from real_time import real_time  # noqa: E402
+from real_time import real_time
 
-from barsynth.errors import BarsynthError  # noqa: E402
+from barsynth.errors import BarsynthError
 
 MODEL = "ruler"
 SAMPLE_RATE = 48_000
