@@ -286,6 +286,7 @@ _MODEL_PATHS: dict[str, str] = {
     "banded": "barsynth.models.banded:MODEL",
     "allpass": "barsynth.models.allpass:MODEL",
     "fd": "barsynth.models.fd:MODEL",
+    "ruler": "barsynth.models.ruler:MODEL",
 }
 
 

@@ -1,0 +1,113 @@
+"""The ruler's one parameter table, and its typed record :class:`RulerParams`."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from ...parameters import CHOICE, INT, Parameter, ParameterTable, Sets
+from ..rows import bar_size_parameters, level_parameter
+from .desk import DESK_NAMES, DESKS
+
+
+@dataclass(frozen=True, kw_only=True)
+class RulerParams:
+    """Resolved parameters of the ruler model (units, ranges and docs: :data:`RULER_TABLE`)."""
+
+    youngs_modulus_pa: float
+    density_kg_m3: float
+    material: str
+    length_m: float
+    thickness_m: float
+    width_m: float
+    overhang_m: float
+    finger_distance_m: float
+    finger_force_n: float
+    finger_stiffness_n_m: float
+    finger_damping_n_s_m: float
+    tip_displacement_mm: float
+    q: float
+    sigma0_per_s: float
+    desk: str
+    desk_stiffness_n_m2: float
+    desk_damping_n_s_m2: float
+    contact_exponent: float
+    slide_m: float
+    slide_time_s: float
+    desk_balance: float
+    points: int
+    level_db: float
+
+
+def _desk_parameter() -> Parameter:
+    def lookup(name: str) -> tuple[float, float]:
+        desk = DESKS[name]
+        return desk.contact_stiffness_n_m2, desk.contact_damping_n_s_m2
+
+    return Parameter("desk", "", None, None, "wood",
+                     "the desk: its modes sound after each slap, and it sets desk_stiffness_n_m2 and "
+                     "desk_damping_n_s_m2", kind=CHOICE, choices=DESK_NAMES,
+                     sets=Sets(("desk_stiffness_n_m2", "desk_damping_n_s_m2"), lookup))
+
+
+def _ruler_size() -> list[Parameter]:
+    """The bar's material and size rows, with a 30 cm acrylic ruler's defaults."""
+    defaults = {"youngs_modulus_pa": 3.2e9, "density_kg_m3": 1180.0, "material": "acrylic", "length_m": 0.30,
+                "thickness_m": 0.003, "width_m": 0.03}
+    docs = {"length_m": "length of the ruler", "thickness_m": "thickness of the ruler",
+            "width_m": "width of the ruler (sets its mass and how much air it moves)"}
+    rows = []
+    for row in bar_size_parameters():
+        changes = {"default": defaults[row.name]}
+        if row.name in docs:
+            changes["doc"] = docs[row.name]
+        if row.name == "length_m":
+            changes.update(minimum=0.05, maximum=1.0)
+        if row.name == "thickness_m":
+            changes.update(maximum=0.02)
+        rows.append(dataclasses.replace(row, **changes))
+    return rows
+
+
+RULER_TABLE = ParameterTable(
+    "ruler",
+    [
+        *_ruler_size(),
+        Parameter("overhang_m", "m", 0.02, 0.95, 0.18,
+                  "how far the ruler reaches beyond the desk's edge: the short cantilever (less than the length)"),
+        Parameter("finger_distance_m", "m", 0.005, 0.9, 0.04,
+                  "how far behind the edge the finger presses (on the desk; within the ruler)"),
+        Parameter("finger_force_n", "N", 0.5, 200.0, 20.0,
+                  "how hard the finger presses the ruler onto the desk (a weak finger lets the ruler lift it)",
+                  scale="log"),
+        Parameter("finger_stiffness_n_m", "N/m", 1e3, 1e7, 1e5, "the finger's stiffness (it presses from above)",
+                  scale="log"),
+        Parameter("finger_damping_n_s_m", "N s/m", 0.0, 200.0, 10.0, "the finger's damping while it presses"),
+        Parameter("tip_displacement_mm", "mm", 0.5, 60.0, 15.0,
+                  "how far the other hand bends the tip down below the desk before letting go", scale="log"),
+        Parameter("q", "", 2.0, 5000.0, 40.0,
+                  "the ruler's material Q, the same for every mode (acrylic about 30, wood 50-100, steel "
+                  "1000 or more)", scale="log"),
+        Parameter("sigma0_per_s", "1/s", 0.0, 50.0, 0.5,
+                  "loss at every frequency (air, the hand): T60 = 6.91 / sigma0 alone"),
+        _desk_parameter(),
+        Parameter("desk_stiffness_n_m2", "N/m^2", 1e6, 1e11, DESKS["wood"].contact_stiffness_n_m2,
+                  "the contact's stiffness per metre of ruler on the desk (a softer desk: softer, lower slaps); "
+                  "the edge bears as 1 cm of it", scale="log"),
+        Parameter("desk_damping_n_s_m2", "N s/m^2", 0.0, 1e4, DESKS["wood"].contact_damping_n_s_m2,
+                  "the contact's damping per metre of ruler, while pressed"),
+        Parameter("contact_exponent", "", 1.0, 2.0, 1.0,
+                  "the contact force's power of the penetration: 1 a linear penalty, 1.5 Hertzian"),
+        Parameter("slide_m", "m", 0.0, 0.5, 0.0,
+                  "how far the hand pulls the ruler back while it rings (the overhang shortens: the pitch rises); "
+                  "0: no slide"),
+        Parameter("slide_time_s", "s", 0.05, 5.0, 1.0, "how long the slide takes (from the release)",
+                  scale="log"),
+        Parameter("desk_balance", "", 0.0, 1.0, 0.5,
+                  "0: only the ruler's sound, 1: only the desk's, 0.5: both as loud as physics makes them"),
+        Parameter("points", "", 20, 400, 61, "grid nodes along the ruler: more are more accurate and slower",
+                  kind=INT),
+        level_parameter(),
+    ],
+    record=RulerParams,
+)
