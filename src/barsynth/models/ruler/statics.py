@@ -83,9 +83,11 @@ def static_shape(stiffness: np.ndarray, gravity: np.ndarray, contacts: K.Contact
         slope = float(gradient @ step)
         while t > 1e-12 and energy(u + t * step) > before + 1e-4 * t * slope + 1e-15 * abs(before):
             t *= 0.5
-        if t < 1e-3 and -slope <= 1e-12 * (0.5 * float(u @ stiffness @ u) + abs(float(external @ u))):
-            # no descent left above rounding: u is the minimum (a stiff contact, a bridge, leaves
-            # Newton steps of rounding noise larger than the step tolerance)
+        rounding = 64.0 * np.finfo(float).eps * float(0.5 * np.abs(u) @ np.abs(stiffness) @ np.abs(u)
+                                                       + np.abs(external) @ np.abs(u))
+        if t < 1e-3 and -slope <= rounding:
+            # no descent left above the energy's rounding: u is the minimum (a stiff contact, a
+            # bridge, leaves Newton steps of rounding noise larger than the step tolerance)
             return u + step, -multiplier if held_at is not None else 0.0
         u = u + t * step
     raise ParameterError("the bar has no rest on these supports (the finger cannot hold it down, or it is not "
