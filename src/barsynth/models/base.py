@@ -287,6 +287,7 @@ _MODEL_PATHS: dict[str, str] = {
     "allpass": "barsynth.models.allpass:MODEL",
     "fd": "barsynth.models.fd:MODEL",
     "ruler": "barsynth.models.ruler:MODEL",
+    "kalimba": "barsynth.models.kalimba:MODEL",
 }
 
 

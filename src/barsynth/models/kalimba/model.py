@@ -1,0 +1,128 @@
+"""The kalimba as a barsynth :class:`~barsynth.models.base.Model`: its setup and what it describes."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.linalg import eigh
+
+from ...checks import show_value
+from ...errors import ParameterError
+from ..base import Mode, Model
+from ..rendering import check_sample_rate
+from ..ruler.design import MIN_NODES_BEYOND, Setup, grid_of, interpolation_at, sigma1_of
+from ..ruler.kernel import PAD
+from ..ruler.model import describe_engine
+from ..ruler.voice import EngineVoice
+from .table import KALIMBA_TABLE, KalimbaParams
+
+MAX_PLUCK_FRACTION = 0.3
+"""The pluck point may be pushed down by at most this fraction of its distance from the bridge
+(beyond it the small deflections of the bar equation no longer hold)."""
+TINE_MODES = 4
+"""How many modes of the tine on its bridge :meth:`KalimbaModel.describe` gives (from the grid)."""
+
+
+def kalimba_setup(p: KalimbaParams) -> Setup:
+    """The engine's setup for the tine ``p`` (clamped at its back end, the bridge ``back_length_m``
+    in front of the clamp, free at the tip); bad geometry refused in one line."""
+    length = p.back_length_m + p.vibrating_length_m
+    dx = length / (p.points - 1)
+    if p.vibrating_length_m < MIN_NODES_BEYOND * dx:
+        raise ParameterError(
+            f"parameter vibrating_length_m = {show_value(p.vibrating_length_m)} m spans "
+            f"{p.vibrating_length_m / dx:.3g} grid cells of {dx * 1000:.3g} mm; allowed: at least "
+            f"{MIN_NODES_BEYOND * dx:.4g} m ({MIN_NODES_BEYOND} cells; or more points)")
+    if p.back_length_m < 2.0 * dx:
+        raise ParameterError(
+            f"parameter back_length_m = {show_value(p.back_length_m)} m is shorter than two grid cells of "
+            f"{dx * 1000:.3g} mm; allowed: at least {2.0 * dx:.4g} m (or more points)")
+    reach = p.pluck_position * p.vibrating_length_m
+    if p.pluck_displacement_mm / 1000.0 > MAX_PLUCK_FRACTION * reach:
+        raise ParameterError(
+            f"parameter pluck_displacement_mm = {show_value(p.pluck_displacement_mm)} mm bends the tine too far "
+            f"{reach * 1000:.3g} mm beyond the bridge; allowed: up to {MAX_PLUCK_FRACTION * reach * 1000:.4g} mm "
+            f"({MAX_PLUCK_FRACTION:g} x pluck_position x vibrating_length_m)")
+    return Setup(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=length,
+                 thickness_m=p.thickness_m, width_m=p.width_m, clamped_back=True, points=p.points,
+                 sigma0_per_s=p.sigma0_per_s, q=p.q, edge_m=p.back_length_m, desk_under=False,
+                 contact_stiffness_n_m2=0.0, contact_damping_n_s_m2=0.0, contact_exponent=1.0,
+                 edge_stiffness_n_m=p.bridge_stiffness_n_m, edge_damping_n_s_m=p.bridge_damping_n_s_m,
+                 edge_height_m=p.bridge_height_mm / 1000.0, edge_two_sided=p.bridge == "pinned",
+                 finger_m=None, finger_force_n=0.0, finger_stiffness_n_m=0.0, finger_damping_n_s_m=0.0,
+                 pluck_m=p.back_length_m + reach, pluck_displacement_m=p.pluck_displacement_mm / 1000.0,
+                 slide_m=0.0, slide_time_s=1.0, desk=None, desk_balance=0.0, level=10.0 ** (p.level_db / 20.0))
+
+
+class KalimbaVoice(EngineVoice):
+    """A kalimba tine on its bridge, pushed down near the tip and let go.
+
+    Examples
+    --------
+    >>> voice = KalimbaVoice({"points": 40}, sample_rate=48000)
+    >>> voice.trigger()
+    >>> block = voice.process(256)
+    >>> block.shape, bool(abs(block).max() > 0)
+    ((256,), True)
+    """
+
+    def setup(self) -> Setup:
+        return kalimba_setup(self._params)
+
+    def held_shape(self) -> np.ndarray:
+        """The static shape (m, unpadded) with the pluck point pushed down by the displacement
+        from where it rests (the bridge lifts the tine: its rest is not at the clamp's height)."""
+        s = self._setup
+        at = self._rows(s.pluck_m)
+        return self._statics(self._contacts, held_at=at, held_m=float(at @ self._rest) - s.pluck_displacement_m)
+
+
+def tine_modes(s: Setup, sample_rate: float, count: int = TINE_MODES) -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies (Hz) and T60s (s) of the whole tine on the grid, clamped, on its bridge (a
+    spring of the bridge's stiffness: a one-sided bridge as while the tine presses on it) and free,
+    as the scheme plays them at ``sample_rate`` (its theta = 1/2 step lowers them slightly)."""
+    grid = grid_of(s)
+    n = grid.mass.size
+    x_padded = np.zeros(n + 2 * PAD)
+    x_padded[PAD:-PAD] = grid.x_m
+    q, w0, w1 = interpolation_at(x_padded, n, s.edge_m)
+    row = np.zeros(n + 2 * PAD)
+    row[q], row[q + 1] = w0, w1
+    row = row[PAD:-PAD]
+    stiffness = grid.stiffness + s.edge_stiffness_n_m * np.outer(row, row)
+    lam = eigh(stiffness, np.diag(grid.mass), eigvals_only=True, subset_by_index=[0, min(count, n) - 1])
+    k = 1.0 / sample_rate
+    # the theta = 1/2 scheme: 4 sin^2(w k / 2) / k^2 = lam / (1 + lam k^2 / 4)
+    omega = 2.0 / k * np.arcsin(np.sqrt(lam * k * k / (4.0 + lam * k * k)))
+    c = math.sqrt(s.youngs_modulus_pa * s.thickness_m ** 2 / (12.0 * s.density_kg_m3))
+    sigma = s.sigma0_per_s + sigma1_of(s) * np.sqrt(lam) / c
+    return omega / (2.0 * math.pi), math.log(1000.0) / sigma
+
+
+class KalimbaModel(Model):
+    """A kalimba tine: the ruler's engine with a bridge and a clamp (see :mod:`barsynth.models.kalimba`)."""
+
+    name = "kalimba"
+    summary = "a finite-difference kalimba tine, clamped behind a bridge it presses on, plucked near the tip (spec 9.4)"
+    table = KALIMBA_TABLE
+    voice_class = KalimbaVoice
+
+    def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:
+        """The clamped-free modes of the vibrating length (bridge to tip: a rigid clamp at the
+        bridge) and the modes of the whole tine on the grid (clamped at the back, on a bridge of
+        its stiffness, free at the tip: the part behind the bridge lowers them), as the scheme
+        plays them. Gains 1 / n^2."""
+        p = self.resolve(parameters)
+        s = kalimba_setup(p)
+        rate = check_sample_rate(sample_rate)
+        modes = describe_engine(s, [("clamped-free", p.vibrating_length_m)], rate)
+        f, t60 = tine_modes(s, rate)
+        for i, (fi, ti) in enumerate(zip(f, t60)):
+            if fi < 0.5 * rate:
+                modes.append(Mode("tine on bridge", float(fi), 1.0 / (i + 1) ** 2, float(ti)))
+        return modes
+
+
+MODEL = KalimbaModel()

@@ -1,0 +1,93 @@
+"""The kalimba's one parameter table, and its typed record :class:`KalimbaParams`."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from ...parameters import CHOICE, INT, Parameter, ParameterTable
+from ..rows import bar_size_parameters, level_parameter
+
+BRIDGES = ("one-sided", "pinned")
+"""How the bridge holds the tine: pressed onto it from above (it may lift off), or both ways."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class KalimbaParams:
+    """Resolved parameters of the kalimba model (units, ranges and docs: :data:`KALIMBA_TABLE`)."""
+
+    youngs_modulus_pa: float
+    density_kg_m3: float
+    material: str
+    thickness_m: float
+    width_m: float
+    vibrating_length_m: float
+    back_length_m: float
+    bridge: str
+    bridge_height_mm: float
+    bridge_stiffness_n_m: float
+    bridge_damping_n_s_m: float
+    pluck_position: float
+    pluck_displacement_mm: float
+    q: float
+    sigma0_per_s: float
+    points: int
+    level_db: float
+
+
+def _tine_size() -> list[Parameter]:
+    """The tine's material and size rows (no ``length_m``: the tine has two lengths), with the
+    defaults of a 1.0 mm spring-steel tine."""
+    defaults = {"youngs_modulus_pa": 200e9, "density_kg_m3": 7850.0, "material": "steel", "thickness_m": 0.001,
+                "width_m": 0.004}
+    docs = {"thickness_m": "thickness of the tine (f1 grows with it)",
+            "width_m": "width of the tine (sets its mass and how much air it moves, not its pitch)"}
+    rows = []
+    for row in bar_size_parameters():
+        if row.name == "length_m":
+            continue
+        changes = {"default": defaults[row.name]}
+        if row.name in docs:
+            changes["doc"] = docs[row.name]
+        if row.name == "thickness_m":
+            changes.update(maximum=0.005)
+        if row.name == "width_m":
+            changes.update(maximum=0.03)
+        rows.append(dataclasses.replace(row, **changes))
+    return rows
+
+
+KALIMBA_TABLE = ParameterTable(
+    "kalimba",
+    [
+        *_tine_size(),
+        Parameter("vibrating_length_m", "m", 0.01, 0.2, 0.043,
+                  "the tine's length from the bridge to its tip: its pitch (f ~ 1/L^2)", scale="log"),
+        Parameter("back_length_m", "m", 0.002, 0.05, 0.008,
+                  "from the clamp (the pressure bar) to the bridge: it lets the tine turn over the bridge, "
+                  "which lowers the pitch", scale="log"),
+        Parameter("bridge", "", None, None, "one-sided",
+                  "one-sided: the tine is pressed onto the bridge and may lift off it; pinned: the bridge "
+                  "holds it both ways", kind=CHOICE, choices=BRIDGES),
+        Parameter("bridge_height_mm", "mm", 0.0, 3.0, 0.5,
+                  "how far the bridge lifts the tine above its clamp: the preload pressing it onto the bridge"),
+        Parameter("bridge_stiffness_n_m", "N/m", 1e4, 1e9, 1e7,
+                  "the bridge's stiffness under the tine (a softer bridge lowers the pitch)", scale="log"),
+        Parameter("bridge_damping_n_s_m", "N s/m", 0.0, 100.0, 1.0,
+                  "the bridge's damping while the tine presses on it"),
+        Parameter("pluck_position", "", 0.3, 1.0, 0.9,
+                  "where the thumb pushes the tine down: a fraction of the vibrating length from the bridge "
+                  "(1: the tip)"),
+        Parameter("pluck_displacement_mm", "mm", 0.05, 10.0, 1.5,
+                  "how far the thumb pushes the tine down before it slips off", scale="log"),
+        Parameter("q", "", 10.0, 1e4, 1500.0,
+                  "the tine's Q, the same for every mode (spring steel a few thousand; the overtones die "
+                  "faster in proportion to their frequency)", scale="log"),
+        Parameter("sigma0_per_s", "1/s", 0.0, 50.0, 1.0,
+                  "loss at every frequency (the mounting, the air): T60 = 6.91 / sigma0 alone"),
+        Parameter("points", "", 20, 400, 60,
+                  "grid nodes along the whole tine (clamp to tip): more are more accurate and slower", kind=INT),
+        dataclasses.replace(level_parameter(), doc="output gain re the pressure in Pa at 1 m"),
+    ],
+    record=KalimbaParams,
+)
