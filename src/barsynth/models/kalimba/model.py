@@ -82,7 +82,7 @@ class KalimbaVoice(EngineVoice):
 def tine_modes(s: Setup, sample_rate: float, count: int = TINE_MODES) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies (Hz) and T60s (s) of the whole tine on the grid, clamped, on its bridge (a
     spring of the bridge's stiffness: a one-sided bridge as while the tine presses on it) and free,
-    as the scheme plays them at ``sample_rate`` (its theta = 1/2 step lowers them slightly)."""
+    as the scheme plays them at ``sample_rate`` (its step lowers them, the higher ones more)."""
     grid = grid_of(s)
     n = grid.mass.size
     x_padded = np.zeros(n + 2 * PAD)
@@ -91,11 +91,16 @@ def tine_modes(s: Setup, sample_rate: float, count: int = TINE_MODES) -> tuple[n
     row = np.zeros(n + 2 * PAD)
     row[q], row[q + 1] = w0, w1
     row = row[PAD:-PAD]
-    stiffness = grid.stiffness + s.edge_stiffness_n_m * np.outer(row, row)
-    lam = eigh(stiffness, np.diag(grid.mass), eigvals_only=True, subset_by_index=[0, min(count, n) - 1])
+    bridge = s.edge_stiffness_n_m * np.outer(row, row)
     k = 1.0 / sample_rate
-    # the theta = 1/2 scheme: 4 sin^2(w k / 2) / k^2 = lam / (1 + lam k^2 / 4)
-    omega = 2.0 / k * np.arcsin(np.sqrt(lam * k * k / (4.0 + lam * k * k)))
+    # The scheme's modes (undamped): the bar's stiffness at theta = 1/2, the bridge's force at the
+    # mean of u+ and u- (the discrete gradient of its potential), so with s = sin(omega k / 2)
+    # (K + Kb) phi = s^2 (4 M / k^2 + K + 2 Kb) phi.
+    count = min(count, n)
+    mu = eigh(grid.stiffness + bridge, 4.0 * np.diag(grid.mass) / k ** 2 + grid.stiffness + 2.0 * bridge,
+              eigvals_only=True, subset_by_index=[0, count - 1])
+    omega = 2.0 / k * np.arcsin(np.sqrt(np.clip(mu, 0.0, 1.0)))
+    lam = eigh(grid.stiffness + bridge, np.diag(grid.mass), eigvals_only=True, subset_by_index=[0, count - 1])
     c = math.sqrt(s.youngs_modulus_pa * s.thickness_m ** 2 / (12.0 * s.density_kg_m3))
     sigma = s.sigma0_per_s + sigma1_of(s) * np.sqrt(lam) / c
     return omega / (2.0 * math.pi), math.log(1000.0) / sigma
