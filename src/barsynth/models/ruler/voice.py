@@ -39,6 +39,7 @@ class EngineVoice(Voice):
 
     def _reset(self) -> None:
         self._allocate(self._design)
+        self._plucked = False
 
     def _desk_bank(self, s: Setup):
         if s.desk is None:
@@ -125,6 +126,7 @@ class EngineVoice(Voice):
     def trigger(self) -> None:
         """Bend the bar down at the pluck point and let go: it starts still, from that static shape."""
         s = self._setup
+        self._plucked = True
         self._edge.state["steps"] = 0
         self._place(s.edge_m)
         self._hold(self.held_shape())
@@ -146,7 +148,11 @@ class EngineVoice(Voice):
             self._bar.u[:], self._bar.u_prev[:] = previous[0], previous[1]
 
     def _render(self, out: np.ndarray) -> None:
-        """The mixed pressure (Pa at 1 m) times the level."""
+        """The mixed pressure (Pa at 1 m) times the level; silence until the first trigger (the
+        bar rests: stepping it would sound only the rounding of its static shape)."""
+        if not self._plucked:
+            out[:] = 0.0
+            return
         run = self._run
         if run is None:
             run = self._run = compiled_for(K.process, out, self._design.scheme, self._bar, self._contacts, self._edge,
