@@ -75,7 +75,7 @@ model's table at its defaults). The finite-difference bar costs points x oversam
 sample: 30 points at 2 steps a sample instead of 100 at 4 (its modes move a few cents; nothing
 here depends on where they are)."""
 
-RANDOM_RANGES = {"fd": {"points": (8, 80)}}
+RANDOM_RANGES = {"fd": {"points": (8, 80)}, "kalimba": {"points": (20, 120)}}
 """Narrower ranges for the random-settings test (whole numbers, inclusive), only for speed: the
 finite-difference bar's cost grows with its grid."""
 
@@ -91,12 +91,13 @@ modes include noise bands names them here, or its measured-partial test measures
 SPURIOUS_GROUPS = {"spurious"}
 """describe() groups that are a model's own artefacts far below its modes (the all-pass loop's)."""
 
-DESCRIBE_CENTS = {"allpass": 0.5, "fd": None}
+DESCRIBE_CENTS = {"allpass": 0.5, "fd": None, "kalimba": None}
 """How far (cents) describe()'s modes below a quarter of the lowest rate may move between rates.
 0 (to rounding) for a model whose modes do not depend on the rate; the all-pass bar fits its
 dispersion filters anew at each rate (within 0.1 cent measured); the finite-difference scheme's
 time step warps its frequencies (None: rate-dependent; at 8 kHz with 2 steps a sample its
-second mode rings 51 cents flat), which the measured test below follows instead."""
+second mode rings 51 cents flat; the kalimba's "tine on bridge" modes are the scheme's at the
+rate, its step unrefined), which the measured test below follows instead."""
 
 COUPLED = {("fd", "strike")}
 """(model, excitation) pairs whose exciter is solved with the bar (the fd mallet's contact
@@ -960,13 +961,15 @@ REFUSAL_REASONS = {
                "tube_radius_m"),
     "allpass": ("first mode",),
     "fd": ("unstable",),
+    "kalimba": ("grid cells", "bends the tine too far", "no rest"),
 }
 """Why each model may refuse settings that are each in range (words its one-line message must
 contain): a ruler with no audible mode; an object with no mode between 30 Hz and a quarter of
 the rate, a T60 shorter than its mode allows, more T60s or gains than modes, ratios no bar has
 with shape = bar (a doublet), a tube on a mode the object lacks (or that does not sound) or too
 wide for its frequency; a bar whose first mode
-lies outside the band the all-pass filters are fitted in; an unstable finite-difference step.
+lies outside the band the all-pass filters are fitted in; an unstable finite-difference step; a
+kalimba tine whose vibrating part or back span is too short for its grid, or pushed down too far.
 Farnell's patch refuses nothing. Random settings and changes while sounding are refused only
 for these: a model not listed may refuse nothing (a new model adds its reasons here).
 LEVEL_GLIDES and NUMBA_ARRAYS_PER_CALL hold defaults for a new model too (the shared output-level
@@ -1265,6 +1268,7 @@ RANDOM_RENDERS = {
     "banded": RandomRenders(0.2, 25),
     "allpass": RandomRenders(0.05, 8),
     "fd": RandomRenders(0.1, 25),
+    "kalimba": RandomRenders(0.1, 15),
 }
 """Per model, as its own tests rendered random settings. The raw peak is bounded where the model
 says what its output is: the twang's is the level (at most 0 dB) times a mix of unit-gain

@@ -37,8 +37,10 @@ class KalimbaParams:
 
 def _tine_size() -> list[Parameter]:
     """The tine's material and size rows (no ``length_m``: the tine has two lengths), with the
-    defaults of a 1.0 mm spring-steel tine."""
-    defaults = {"youngs_modulus_pa": 200e9, "density_kg_m3": 7850.0, "material": "steel", "thickness_m": 0.001,
+    defaults of a 1.0 mm spring-steel tine: E and rho are the materials table's ``steel``, and
+    ``material`` keeps its default ``custom`` (the choice a table turns back to when E or rho is
+    given by hand; a default that is a material would set nothing when chosen)."""
+    defaults = {"youngs_modulus_pa": 200e9, "density_kg_m3": 7850.0, "material": "custom", "thickness_m": 0.001,
                 "width_m": 0.004}
     docs = {"thickness_m": "thickness of the tine (f1 grows with it)",
             "width_m": "width of the tine (sets its mass and how much air it moves, not its pitch)"}
