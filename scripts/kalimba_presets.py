@@ -1,6 +1,6 @@
 """Write the kalimba's presets: a 17-key kalimba in C (C4 to E6), each tine tuned by its length.
 
-    python scripts/kalimba_presets.py [--check]
+    python scripts/kalimba_presets.py [--check] [--write-doc docs/kalimba.md]
 
 Each note starts from the clamped-free length of docs/kalimba-notes.md's Table 1 (a 1.0 mm steel
 tine: ``scripts/kalimba_table.py``). The part behind the bridge (``back_length_m``, the same for
@@ -12,6 +12,9 @@ the pitch measured in the rendered sound (:func:`measured_hz`) until that is wit
 length (about :data:`CELL_M` a cell), so the root-find moves a continuous function.
 
 With ``--check`` nothing is written: each preset's rendered pitch is printed with its error in cents.
+With ``--write-doc`` the presets are not written either: the table between
+``<!-- kalimba-presets:start -->`` and ``<!-- kalimba-presets:end -->`` in that file is replaced by
+:func:`presets_table` (what each preset plays, measured; tests/test_kalimba.py checks it).
 """
 
 from __future__ import annotations
@@ -19,6 +22,8 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import math
+import re
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -109,14 +114,57 @@ def preset_text(note: str, parameters: dict) -> str:
     )
 
 
+CLAMPED_FREE_RATIO = (4.6940911330 / 1.8751040687) ** 2
+"""f2 / f1 of the clamped-free beam (6.267)."""
+
+
+def presets_table() -> str:
+    """Each preset, measured: its note, the vibrating length, b / L, the rendered f1 and its error,
+    the rendered f2 / f1, and f2 / f1 of Chapman's support (clamped, rigid pin, free: Table 2 of
+    docs/kalimba-notes.md), of the grid's tine on its 1e7 N/m bridge without the time step's warp
+    and with it (describe at 48 kHz)."""
+    script = _table_script()
+    rows = ["| preset | note (Hz) | vibrating_length_m | b / L | rendered f1 (Hz) | error (cents) | "
+            "rendered f2 / f1 | Chapman's support f2 / f1 | grid, no step warp | grid at 48 kHz |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for note in script.NOTES:
+        parameters = tomllib.loads((FOLDER / f"{note.lower()}.toml").read_text(encoding="utf-8"))["parameters"]
+        p = MODEL.resolve(parameters)
+        target = script.note_hz(note)
+        x = MODEL.render(parameters, duration_s=MEASURE_START_S + MEASURE_S, sample_rate=SAMPLE_RATE,
+                         normalize=False, dtype=np.float64)
+        s = kalimba_setup(p)
+        described = tine_modes(s, SAMPLE_RATE, 2)[0]
+        unwarped = tine_modes(s, 1e9, 2)[0]
+        f1 = measured_hz(x, SAMPLE_RATE, target)
+        f2 = measured_hz(x[:int((MEASURE_START_S + 0.2) * SAMPLE_RATE)], SAMPLE_RATE, described[1])
+        back = p.back_length_m / p.vibrating_length_m
+        k = script.supported_eigenvalues(back, 2)
+        rows.append(f"| `{note.lower()}` | {note} ({target:.2f}) | {p.vibrating_length_m:.7g} | {back:.3f} | "
+                    f"{f1:.2f} | {cents(f1, target):+.2f} | {f2 / f1:.3f} | {(k[1] / k[0]) ** 2:.3f} | "
+                    f"{unwarped[1] / unwarped[0]:.3f} | {described[1] / described[0]:.3f} |")
+    return "\n".join(rows)
+
+
+def written(text: str) -> str:
+    """``text`` with the marked presets table replaced by :func:`presets_table`."""
+    pattern = re.compile(r"(<!-- kalimba-presets:start -->\n).*?(\n<!-- kalimba-presets:end -->)", re.DOTALL)
+    if not pattern.search(text):
+        raise SystemExit("no <!-- kalimba-presets:start --> ... <!-- kalimba-presets:end --> markers")
+    rows = presets_table()
+    return pattern.sub(lambda m: m.group(1) + rows + m.group(2), text)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="print each preset's rendered pitch; write nothing")
+    parser.add_argument("--write-doc", type=Path, metavar="MD", help="replace the marked presets table in this file")
     args = parser.parse_args()
     script = _table_script()
+    if args.write_doc is not None:
+        args.write_doc.write_text(written(args.write_doc.read_text(encoding="utf-8")), encoding="utf-8")
+        return
     if args.check:
-        import tomllib
-
         for note in script.NOTES:
             target = script.note_hz(note)
             parameters = tomllib.loads((FOLDER / f"{note.lower()}.toml").read_text())["parameters"]

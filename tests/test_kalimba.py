@@ -188,3 +188,9 @@ def test_bad_geometry_is_one_line(settings, needles):
         assert "\n" not in message and "allowed" in message
         for needle in needles:
             assert needle in message
+
+
+def test_the_doc_says_what_the_presets_play():
+    doc = (ROOT / "docs" / "kalimba.md").read_text(encoding="utf-8")
+    assert _script("kalimba_presets").written(doc) == doc, \
+        "run: python scripts/kalimba_presets.py --write-doc docs/kalimba.md"
