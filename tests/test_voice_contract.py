@@ -960,13 +960,16 @@ REFUSAL_REASONS = {
                "tube_radius_m"),
     "allpass": ("first mode",),
     "fd": ("unstable",),
+    "ruler": ("shorter than the ruler", "beyond the ruler's back end", "grid cells", "too far", "no rest on these"),
 }
 """Why each model may refuse settings that are each in range (words its one-line message must
 contain): a ruler with no audible mode; an object with no mode between 30 Hz and a quarter of
 the rate, a T60 shorter than its mode allows, more T60s or gains than modes, ratios no bar has
 with shape = bar (a doublet), a tube on a mode the object lacks (or that does not sound) or too
 wide for its frequency; a bar whose first mode
-lies outside the band the all-pass filters are fitted in; an unstable finite-difference step.
+lies outside the band the all-pass filters are fitted in; an unstable finite-difference step; a ruler whose overhang is not shorter than it, whose finger
+lies beyond its back end, whose vibrating part spans too few grid cells, whose tip is bent down
+too far for small deflections, or whose finger cannot hold it.
 Farnell's patch refuses nothing. Random settings and changes while sounding are refused only
 for these: a model not listed may refuse nothing (a new model adds its reasons here).
 LEVEL_GLIDES and NUMBA_ARRAYS_PER_CALL hold defaults for a new model too (the shared output-level

@@ -76,13 +76,19 @@ def static_shape(stiffness: np.ndarray, gravity: np.ndarray, contacts: K.Contact
         if not np.all(np.isfinite(step)):
             break
         size = float(np.max(np.abs(step)))
-        if size <= 1e-15 + 1e-9 * float(np.max(np.abs(u))):
+        reach = float(np.max(np.abs(u)))
+        if size <= 1e-14 + 1e-8 * reach:
             return u + step, -multiplier if held_at is not None else 0.0
         before = energy(u)
         t = 1.0
         slope = float(gradient @ step)
         while t > 1e-12 and energy(u + t * step) > before + 1e-4 * t * slope + 1e-15 * abs(before):
             t *= 0.5
-        u = u + t * step
+        moved = u + t * step
+        if t <= 1e-12 or np.array_equal(moved, u):  # no decrease left to find: flat to rounding here
+            if size <= 1e-12 + 1e-6 * reach:
+                return u + step, -multiplier if held_at is not None else 0.0
+            break
+        u = moved
     raise ParameterError("the bar has no rest on these supports (the finger cannot hold it down, or it is not "
                          "supported at all); allowed: a larger finger_force_n or a smaller displacement")
