@@ -66,6 +66,8 @@ GLIDES: dict[str, dict[str, Any]] = {
     "banded": {"mallet_hardness": 0.2, "q": 100.0, "level_db": -6.0},
     "allpass": {"q": 100.0, "level_db": -6.0},
     "fd": {"sigma0_per_s": 5.0, "level_db": -6.0},
+    "ruler": {"q": 60.0, "level_db": -6.0},
+    "kalimba": {"q": 500.0, "level_db": -6.0},
 }
 
 

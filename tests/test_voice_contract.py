@@ -961,6 +961,7 @@ REFUSAL_REASONS = {
                "tube_radius_m"),
     "allpass": ("first mode",),
     "fd": ("unstable",),
+    "ruler": ("shorter than the ruler", "beyond the ruler's back end", "grid cells", "too far", "no rest on these"),
     "kalimba": ("grid cells", "bends the tine too far", "no rest"),
 }
 """Why each model may refuse settings that are each in range (words its one-line message must
@@ -968,8 +969,10 @@ contain): a ruler with no audible mode; an object with no mode between 30 Hz and
 the rate, a T60 shorter than its mode allows, more T60s or gains than modes, ratios no bar has
 with shape = bar (a doublet), a tube on a mode the object lacks (or that does not sound) or too
 wide for its frequency; a bar whose first mode
-lies outside the band the all-pass filters are fitted in; an unstable finite-difference step; a
-kalimba tine whose vibrating part or back span is too short for its grid, or pushed down too far.
+lies outside the band the all-pass filters are fitted in; an unstable finite-difference step; a ruler whose overhang is not shorter than it, whose finger
+lies beyond its back end, whose vibrating part spans too few grid cells, whose tip is bent down
+too far for small deflections, or whose finger cannot hold it; a kalimba tine whose vibrating
+part or back span is too short for its grid, or pushed down too far.
 Farnell's patch refuses nothing. Random settings and changes while sounding are refused only
 for these: a model not listed may refuse nothing (a new model adds its reasons here).
 LEVEL_GLIDES and NUMBA_ARRAYS_PER_CALL hold defaults for a new model too (the shared output-level

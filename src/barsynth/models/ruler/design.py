@@ -19,6 +19,7 @@ import numpy as np
 from ...errors import ParameterError
 from ...physics.grid import BarGrid, bar_grid
 from . import kernel as K
+from .desk import DESKS, DeskModes, desk_modes
 
 GRAVITY_M_S2 = 9.81
 AIR_DENSITY_KG_M3 = 1.2
@@ -29,6 +30,13 @@ EDGE_LENGTH_M = 0.01
 desk's per-metre stiffness x this (a rounded corner bears on about a centimetre)."""
 THETA = 0.5
 """The theta scheme's implicitness: 0.5, stable at any step and without numerical loss."""
+DESK_MODE_COUNT = 100
+"""The desk's lowest modes that sound (a 1 mm steel top has 100 below about 450 Hz, wood below 4 kHz)."""
+DESK_CONTACT_XY = (0.37, 0.15)
+"""Where the ruler meets the desk top, as fractions of its length and depth (off its middle, so the
+modes with a nodal line there are not all silent)."""
+LOWEST_DESK_HZ = 20.0
+"""Desk modes below this (Hz) are left out: inaudible, and they would ring on for a minute."""
 MIN_NODES_BEYOND = 6
 """The vibrating part (beyond the edge or bridge) must span at least this many grid cells."""
 
@@ -75,6 +83,14 @@ class Setup:
     desk_balance: float
     """0: only the bar's sound, 1: only the desk's, 0.5: both at their own levels."""
     level: float
+
+
+def desk_modes_for(name: str, sample_rate: float) -> DeskModes:
+    """The modes of the desk ``name`` that sound at ``sample_rate`` Hz (see :data:`DESK_MODE_COUNT`)."""
+    found = desk_modes(DESKS[name], max_hz=0.45 * sample_rate, max_count=DESK_MODE_COUNT,
+                       contact_xy=DESK_CONTACT_XY)
+    audible = found.frequency_hz >= LOWEST_DESK_HZ
+    return DeskModes(*(field[audible] for field in found))
 
 
 def sigma1_of(s: Setup) -> float:

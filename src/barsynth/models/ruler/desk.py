@@ -57,8 +57,11 @@ Contact. ``contact_stiffness_n_m2`` (N/m per metre of ruler lying on the desk) a
 ``contact_damping_n_s_m2`` are penalty values of the ruler engine's one-sided contact. The
 physical line-contact stiffness of a ruler on wood (across the grain, E about 1 GPa) is of
 order 1e9 N/m^2, on steel or glass (E* of tens of GPa) of order 1e10-1e11: stiffer than an
-FD ruler at 48 kHz can resolve. The presets keep the order (wood < oak < steel < glass) at
-values it can resolve: 2e8, 3e8, 1e9, 1.5e9 N/m^2 (assumed, after the brief; retune freely).
+FD ruler at 48 kHz resolves cheaply. The presets keep the order (wood < oak < steel < glass) at
+1e9, 1.5e9, 4e9, 6e9 N/m^2 (assumed): a ruler lying on a penalty foundation ``k`` is held over
+about ``(4 E I / k)^(1/4)`` (5 mm for a 3 mm acrylic ruler on wood), so a softer one lowers the
+short cantilever's pitch (2e8 N/m^2: 5 % lower; 1e9: 3 %), and a stiffer one costs Newton
+iterations on the desk's chatter (2e10: twice as many).
 The damping is set from a restitution coefficient (assumed: pine 0.5, oak 0.6, steel 0.8,
 glass 0.85) of a linear spring-dashpot contact carrying :data:`REFERENCE_RULER_KG_M` (a
 30 mm x 1 mm steel rule, 0.2355 kg/m): see :func:`contact_damping_for` and
@@ -175,7 +178,7 @@ def contact_damping_for(stiffness_n_m2: float, restitution: float,
     contact, the rebound speed over the impact speed is ``e = exp(-zeta pi / sqrt(1 - zeta^2))``
     with ``zeta = c / (2 sqrt(k mu))``; so ``zeta = -ln e / sqrt(pi^2 + ln^2 e)``.
 
-    >>> round(contact_restitution_from(2e8, contact_damping_for(2e8, 0.5), REFERENCE_RULER_KG_M), 12)
+    >>> round(contact_restitution_from(1e9, contact_damping_for(1e9, 0.5), REFERENCE_RULER_KG_M), 12)
     0.5
     """
     k = check_number("stiffness_n_m2", stiffness_n_m2, "N/m^2", minimum=0.0, minimum_exclusive=True)
@@ -225,26 +228,26 @@ def _make_desks() -> dict[str, Desk]:
     desks = [
         Desk("wood", "A pine table top, 25 mm thick, 1.2 m x 0.7 m, grain along its length, on legs.",
              pine_e, 0.40 * 1120.0, pine_nu, 0.025, 1.2, 0.7, 0.02,
-             2e8, contact_damping_for(2e8, 0.5),
+             1e9, contact_damping_for(1e9, 0.5),
              f"Ponderosa pine, {wh}: MOE 8.9 GPa, G 0.40, E_T/E_L 0.083, nu_LT 0.400; {plate_note}. "
              "Size and thickness: assumed (a typical table). Loss factor 0.02: assumed for a mounted top "
              "(CHP wood material eta 0.008-0.01 plus joints and legs). " + contact.format(e=0.5)),
         Desk("oak", "An oak table top, 30 mm thick, 1.6 m x 0.8 m, grain along its length, on legs.",
              oak_e, 0.63 * 1120.0, oak_nu, 0.030, 1.6, 0.8, 0.015,
-             3e8, contact_damping_for(3e8, 0.6),
+             1.5e9, contact_damping_for(1.5e9, 0.6),
              f"Northern red oak, {wh}: MOE 12.5 GPa, G 0.63, E_T/E_L 0.082 and nu_LT 0.448 (red-oak group); "
              f"{plate_note}. "
              "Size and thickness: assumed. Loss factor 0.015: assumed (CHP wood eta 0.008-0.01 plus mounting). "
              + contact.format(e=0.6)),
         Desk("steel", "A steel desk: a 1 mm sheet-steel top, 1.2 m x 0.6 m, on a frame (simply supported).",
-             steel.youngs_modulus_pa, steel.density_kg_m3, steel.poisson_ratio, 0.001, 1.2, 0.6, 0.003,
-             1e9, contact_damping_for(1e9, 0.8),
+             steel.youngs_modulus_pa, steel.density_kg_m3, steel.poisson_ratio, 0.001, 1.2, 0.6, 0.01,
+             4e9, contact_damping_for(4e9, 0.8),
              f"E, rho, nu: barsynth materials.toml [steel] ({steel.source.split('. Q:')[0]}). Size: assumed "
-             "(an office desk). Loss factor 0.003: assumed for a sheet on a frame (CHP steel material eta "
-             "1e-4-6e-4, joints add most). " + contact.format(e=0.8)),
+             "(an office desk). Loss factor 0.01: assumed for a sheet on a frame (CHP steel material eta "
+             "1e-4-6e-4; the frame's joints, drawers and what lies on a desk add most). " + contact.format(e=0.8)),
         Desk("glass", "A 10 mm soda-lime glass table top, 1.2 m x 0.7 m, on pads (taken as simply supported).",
              glass.youngs_modulus_pa, glass.density_kg_m3, glass.poisson_ratio, 0.010, 1.2, 0.7, 0.003,
-             1.5e9, contact_damping_for(1.5e9, 0.85),
+             6e9, contact_damping_for(6e9, 0.85),
              f"E, rho, nu: barsynth materials.toml [glass] ({glass.source.split('. Q:')[0]}). Size: assumed. "
              "Loss factor 0.003: assumed (CHP glass eta 6e-4-2e-3, plus rubber pads). " + contact.format(e=0.85)),
     ]

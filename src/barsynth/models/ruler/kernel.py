@@ -125,6 +125,10 @@ class Edge(NamedTuple):
     """(int64) The contact indices of the desk under each node (padded index = node)."""
     edge: int
     """The contact index of the edge (-1: none)."""
+    finger: int
+    """The contact index of the finger (-1: none): it keeps its distance behind the edge (the
+    finger presses near the edge while the other hand pulls the ruler back under it)."""
+    finger_back_m: float
     desk_stiffness_n_m2: float
     desk_damping_n_s_m2: float
     radiation_pa_s2_m2: float
@@ -215,10 +219,13 @@ def _gradient(after, before, k, a, two_sided):  # pragma: no cover - compiled
 
 @njit(**_INNER)
 def _contact_terms(contacts, v, u, u_prev, half_rate):  # pragma: no cover - compiled
-    """Each contact's force and slope at the iterate ``v``. Returns True if the last linearisation
-    may not have been exact: a contact changed the piece of its law it is on, or one meets or
-    parts within the step (its force is not linear there)."""
+    """Each contact's force and slope at the iterate ``v``. Returns whether the last linearisation
+    may not have been exact (a contact changed the piece of its law it is on, or one meets or parts
+    within the step: its force is not linear there), whether a slope differs from the factored
+    one, and the force on the desk (N)."""
     inexact = False
+    refactor = False
+    on_desk = 0.0
     first, w0, w1 = contacts.first, contacts.w0, contacts.w1
     for e in range(first.size):
         k = contacts.stiffness[e]
@@ -260,12 +267,16 @@ def _contact_terms(contacts, v, u, u_prev, half_rate):  # pragma: no cover - com
         contacts.force[e] = force
         contacts.potential_force[e] = phi
         contacts.slope[e] = slope
-    return inexact
+        if slope != contacts.factored[e]:
+            refactor = True
+        if contacts.on_desk[e]:
+            on_desk += force
+    return inexact, refactor, on_desk
 
 
 @njit(**_INNER)
 def _residual(bar, scheme, contacts):  # pragma: no cover - compiled
-    """``A (v + u-) - rhs + sum_e sign_e J_e t_e``; returns its largest entry (N)."""
+    """``bar.residual <- A (v + u-) - rhs + sum_e sign_e J_e t_e``."""
     v, u_prev, rhs, res = bar.v, bar.u_prev, bar.rhs, bar.residual
     a0, a1, a2 = scheme.system[0], scheme.system[1], scheme.system[2]
     end = v.size - PAD
@@ -281,10 +292,6 @@ def _residual(bar, scheme, contacts):  # pragma: no cover - compiled
         q = first[e]
         res[q] += push * contacts.w0[e]
         res[q + 1] += push * contacts.w1[e]
-    largest = 0.0
-    for q in range(PAD, end):
-        largest = max(largest, abs(res[q]))
-    return largest
 
 
 @njit(**_INNER)
@@ -298,8 +305,12 @@ def _solve_in_place(x, factors):  # pragma: no cover - compiled
         x[q] = x[q] * inv_d[q] - l1[q + 1] * x[q + 1] - l2[q + 2] * x[q + 2]
 
 
-@njit(**_INNER)
-def _place_edge(edge, contacts, output, x_edge):  # pragma: no cover - compiled
+_PLACING = {"cache": True, "nogil": True, "fastmath": {"contract"}, "error_model": "numpy"}
+"""The edge's placement is also called from Python (when a note starts), so it keeps its wrapper."""
+
+
+@njit(**_PLACING)
+def place_edge(edge, contacts, output, x_edge):  # pragma: no cover - compiled
     """Put the edge at ``x_edge`` (m along the bar): the desk under each node by how much of its
     cell lies on the desk, the edge contact interpolated there, the radiating overhang beyond it.
     Continuous in ``x_edge``: a slide moves the contact region without a jump in the potential."""
@@ -314,14 +325,23 @@ def _place_edge(edge, contacts, output, x_edge):  # pragma: no cover - compiled
             contacts.stiffness[e] = edge.desk_stiffness_n_m2 * on
             contacts.damping[e] = edge.desk_damping_n_s_m2 * on
     if edge.edge >= 0:
-        q = PAD
-        while q + 1 < end - 1 and x[q + 1] <= x_edge:
-            q += 1
-        w1 = (x_edge - x[q]) / (x[q + 1] - x[q])
-        w1 = min(max(w1, 0.0), 1.0)
-        contacts.first[edge.edge] = q
-        contacts.w0[edge.edge] = 1.0 - w1
-        contacts.w1[edge.edge] = w1
+        _interpolate(edge, contacts, edge.edge, x_edge)
+    if edge.finger >= 0:
+        _interpolate(edge, contacts, edge.finger, x_edge - edge.finger_back_m)
+
+
+@njit(**_PLACING)
+def _interpolate(edge, contacts, e, x):  # pragma: no cover - compiled
+    """Contact ``e`` at ``x`` (m along the bar), linearly between the nodes around it."""
+    nodes = edge.x_m
+    end = nodes.size - PAD
+    q = PAD
+    while q + 1 < end - 1 and nodes[q + 1] <= x:
+        q += 1
+    w1 = min(max((x - nodes[q]) / (nodes[q + 1] - nodes[q]), 0.0), 1.0)
+    contacts.first[e] = q
+    contacts.w0[e] = 1.0 - w1
+    contacts.w1[e] = w1
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
@@ -351,22 +371,17 @@ def process(out, scheme, bar, contacts, edge, output):  # pragma: no cover - com
             if edge.slide_m > 0.0 and edge_state.steps <= edge.slide_steps:
                 phase = edge_state.steps / edge.slide_steps
                 moved = edge.slide_m * (0.5 - 0.5 * np.cos(np.pi * phase))
-                _place_edge(edge, contacts, output, edge.start_m + moved)
+                place_edge(edge, contacts, output, edge.start_m + moved)
                 edge_state.steps += 1
             for q in range(PAD, end):
                 rhs[q] = (b0[q] * u[q] + bl1[q] * u[q - 1] + br1[q] * u[q + 1] + bl2[q] * u[q - 2]
                           + br2[q] * u[q + 2] + c0[q] * u_prev[q] + cl[q] * u_prev[q - 1]
                           + cr[q] * u_prev[q + 1] + gravity[q])
                 v[q] = 2.0 * u[q] - u_prev[q]
-            _contact_terms(contacts, v, u, u_prev, half_rate)
+            inexact, refactor, on_desk = _contact_terms(contacts, v, u, u_prev, half_rate)
             iterations = 0
             for _ in range(MAX_NEWTON_STEPS):
                 _residual(bar, scheme, contacts)
-                refactor = False
-                for e in range(contacts.first.size):
-                    if contacts.slope[e] != contacts.factored[e]:
-                        refactor = True
-                        break
                 if refactor:
                     _factor_bands(bar.factors, scheme.system, contacts)
                 res = bar.residual
@@ -378,7 +393,7 @@ def process(out, scheme, bar, contacts, edge, output):  # pragma: no cover - com
                     largest_move = max(largest_move, abs(res[q]))
                     largest = max(largest, abs(v[q]))
                 iterations += 1
-                inexact = _contact_terms(contacts, v, u, u_prev, half_rate)
+                inexact, refactor, on_desk = _contact_terms(contacts, v, u, u_prev, half_rate)
                 if scheme.linear and not inexact:
                     break  # linear on unchanged pieces: this iteration was exact
                 if largest_move <= ABSOLUTE_TOLERANCE_M + RELATIVE_TOLERANCE * largest:
@@ -387,15 +402,7 @@ def process(out, scheme, bar, contacts, edge, output):  # pragma: no cover - com
             state.steps += 1
             if iterations > state.most_iterations:
                 state.most_iterations = iterations
-            # the step: sound, desk force, energy taken, then the state moves on
-            pressure = 0.0
-            for q in range(PAD, end):
-                pressure += radiation[q] * (v[q] - 2.0 * u[q] + u_prev[q])
-            pressure *= rate * rate
-            on_desk = 0.0
-            for e in range(contacts.first.size):
-                if contacts.on_desk[e] and contacts.stiffness[e] != 0.0:
-                    on_desk += contacts.force[e]
+            # the step: energy taken, then the state moves on, the sound summed on the way
             if state.track:
                 lost = 0.0
                 for q in range(PAD, end):
@@ -408,9 +415,13 @@ def process(out, scheme, bar, contacts, edge, output):  # pragma: no cover - com
                         damped += (contacts.force[e] - contacts.potential_force[e]) * (
                             contacts.eta_plus[e] - contacts.eta_prev[e])
                 state.lost_contact_j += 0.5 * damped
+            pressure = 0.0
             for q in range(PAD, end):
-                u_prev[q] = u[q]
+                now = u[q]
+                pressure += radiation[q] * (v[q] - 2.0 * now + u_prev[q])
+                u_prev[q] = now
                 u[q] = v[q]
+            pressure *= rate * rate
             output.force[t - start] = on_desk - output.rest_force_n
             out[t] = pressure
         n = stop - start

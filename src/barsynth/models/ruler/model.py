@@ -11,8 +11,7 @@ from ...checks import show_value
 from ...errors import ParameterError
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
-from .design import EDGE_LENGTH_M, Setup, sigma1_of
-from .desk import DESKS, desk_modes
+from .design import EDGE_LENGTH_M, Setup, desk_modes_for, sigma1_of
 from .table import RULER_TABLE, RulerParams
 from .voice import EngineVoice
 
@@ -86,7 +85,7 @@ def describe_engine(s: Setup, groups: list[tuple[str, float]], sample_rate: floa
             if fi < nyquist:
                 modes.append(Mode(group, float(fi), 1.0 / (i + 1) ** 2, float(ti)))
     if s.desk is not None:
-        found = desk_modes(DESKS[s.desk], max_hz=0.45 * sample_rate)
+        found = desk_modes_for(s.desk, sample_rate)
         for fi, ti, gi in zip(found.frequency_hz, found.t60_s, found.gain):
             modes.append(Mode("desk", float(fi), float(gi), float(ti)))
     return modes

@@ -76,7 +76,8 @@ def static_shape(stiffness: np.ndarray, gravity: np.ndarray, contacts: K.Contact
         if not np.all(np.isfinite(step)):
             break
         size = float(np.max(np.abs(step)))
-        if size <= 1e-15 + 1e-9 * float(np.max(np.abs(u))):
+        reach = float(np.max(np.abs(u)))
+        if size <= 1e-14 + 1e-8 * reach:
             return u + step, -multiplier if held_at is not None else 0.0
         before = energy(u)
         t = 1.0
@@ -85,10 +86,14 @@ def static_shape(stiffness: np.ndarray, gravity: np.ndarray, contacts: K.Contact
             t *= 0.5
         rounding = 64.0 * np.finfo(float).eps * float(0.5 * np.abs(u) @ np.abs(stiffness) @ np.abs(u)
                                                        + np.abs(external) @ np.abs(u))
-        if t < 1e-3 and -slope <= rounding:
-            # no descent left above the energy's rounding: u is the minimum (a stiff contact, a
-            # bridge, leaves Newton steps of rounding noise larger than the step tolerance)
+        if t < 1.0 and -slope <= rounding:  # the decrease left is below the energy's rounding (u K u
+            # cancels: a stiff bridge under a smooth tine), so the line search cannot see it: Newton's step
             return u + step, -multiplier if held_at is not None else 0.0
-        u = u + t * step
+        moved = u + t * step
+        if t <= 1e-12 or np.array_equal(moved, u):  # no decrease left to find: flat to rounding here
+            if size <= 1e-12 + 1e-6 * reach:
+                return u + step, -multiplier if held_at is not None else 0.0
+            break
+        u = moved
     raise ParameterError("the bar has no rest on these supports (the finger cannot hold it down, or it is not "
                          "supported at all); allowed: a larger finger_force_n or a smaller displacement")

@@ -51,8 +51,9 @@ def _desk_parameter() -> Parameter:
 
 
 def _ruler_size() -> list[Parameter]:
-    """The bar's material and size rows, with a 30 cm acrylic ruler's defaults."""
-    defaults = {"youngs_modulus_pa": 3.2e9, "density_kg_m3": 1180.0, "material": "acrylic", "length_m": 0.30,
+    """The bar's material and size rows, with a 30 cm acrylic ruler's defaults (its E and density,
+    the material left ``custom``: a chosen material sets them)."""
+    defaults = {"youngs_modulus_pa": 3.2e9, "density_kg_m3": 1180.0, "material": "custom", "length_m": 0.30,
                 "thickness_m": 0.003, "width_m": 0.03}
     docs = {"length_m": "length of the ruler", "thickness_m": "thickness of the ruler",
             "width_m": "width of the ruler (sets its mass and how much air it moves)"}

@@ -16,8 +16,8 @@ from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARG
 from ...jitstart import compiled_for
 from ..base import Voice
 from . import kernel as K
-from .design import THETA, Design, Setup, design, interpolation_at
-from .desk import DESKS, desk_bank, desk_modes
+from .design import THETA, Design, Setup, design, desk_modes_for, interpolation_at
+from .desk import DESKS, desk_bank, desk_modes, reset_desk
 from .statics import _laws, _rows as _contact_rows, static_shape
 
 CHUNK = 256
@@ -39,13 +39,13 @@ class EngineVoice(Voice):
 
     def _reset(self) -> None:
         self._allocate(self._design)
-        self._plucked = False
 
     def _desk_bank(self, s: Setup):
+        """The desk's bank (a silent one-mode bank without a desk: the kernel's record is the same)."""
         if s.desk is None:
             return desk_bank(desk_modes(DESKS["wood"], max_hz=0.45 * self.sample_rate, max_count=1),
                              self.sample_rate)
-        return desk_bank(desk_modes(DESKS[s.desk], max_hz=0.45 * self.sample_rate), self.sample_rate)
+        return desk_bank(desk_modes_for(s.desk, self.sample_rate), self.sample_rate)
 
     def _allocate(self, d: Design) -> None:
         """State for the design ``d``: the bar at rest on its supports."""
@@ -59,8 +59,8 @@ class EngineVoice(Voice):
                                     potential_force=np.zeros(count), slope=np.zeros(count),
                                     factored=np.full(count, np.nan), regime=np.zeros(count, dtype=np.int64))
         rate = self.sample_rate
-        self._edge = K.Edge(d.x_padded, d.cell_low, d.cell_high, d.desk_nodes, d.edge_index,
-                            s.contact_stiffness_n_m2, s.contact_damping_n_s_m2, d.radiation_scale, s.edge_m, s.slide_m,
+        self._edge = K.Edge(d.x_padded, d.cell_low, d.cell_high, d.desk_nodes, d.edge_index, d.finger_index,
+                            s.edge_m - s.finger_m if s.finger_m is not None else 0.0, s.contact_stiffness_n_m2, s.contact_damping_n_s_m2, d.radiation_scale, s.edge_m, s.slide_m,
                             max(1, int(round(s.slide_time_s * rate))), s.desk_under, np.zeros(1, K.EDGE_STATE))
         self._level = np.zeros(SMOOTHED_STATE)
         start_ramp_now(self._level, MULTIPLICATIVE, s.level, 0)
@@ -70,6 +70,7 @@ class EngineVoice(Voice):
         self._rest = self._rest_shape()
         self._hold(self._rest)
         self._output = self._output._replace(rest_force_n=self._desk_load(self._rest))
+        self._sounding = False  # at rest it stays at rest: nothing to step, exact silence
 
     def _desk_load(self, shape: np.ndarray) -> float:
         """The force (N) the bar at ``shape`` (still, unpadded) presses on the desk with."""
@@ -87,7 +88,7 @@ class EngineVoice(Voice):
                         self._level, self._output_state)
 
     def _place(self, x_edge: float) -> None:
-        K._place_edge.py_func(self._edge, self._contacts, self._output, x_edge)
+        K.place_edge(self._edge, self._contacts, self._output, x_edge)
 
     def _rows(self, position_m: float) -> np.ndarray:
         n = self._design.grid.mass.size
@@ -124,12 +125,17 @@ class EngineVoice(Voice):
         return self._statics(self._contacts, held_at=self._rows(s.pluck_m), held_m=-s.pluck_displacement_m)
 
     def trigger(self) -> None:
-        """Bend the bar down at the pluck point and let go: it starts still, from that static shape."""
+        """Bend the bar down at the pluck point and let go: it starts still, from that static shape.
+        A restart: the desk falls silent and the solver starts afresh, so a note is the same
+        whatever rang before (the studio cross-fades the old one out)."""
         s = self._setup
-        self._plucked = True
         self._edge.state["steps"] = 0
+        reset_desk(self._output.desk)
+        self._contacts.factored[:] = np.nan
+        self._contacts.regime[:] = 0
         self._place(s.edge_m)
         self._hold(self.held_shape())
+        self._sounding = True
 
     def _update(self, old: Any) -> None:
         """A new level glides there; any other change makes the design anew and the bar rests on
@@ -141,17 +147,22 @@ class EngineVoice(Voice):
             start_ramp_now(self._level, MULTIPLICATIVE, new_setup.level, ramp_steps(LEVEL_GLIDE_S, self.sample_rate))
             return
         new = design(new_setup, self.sample_rate)  # refuses before anything changes
-        previous = (self._bar.u.copy(), self._bar.u_prev.copy(), self._design.grid.mass.size)
-        self._setup, self._design = new_setup, new
-        self._allocate(new)
-        if previous[2] == new.grid.mass.size:
-            self._bar.u[:], self._bar.u_prev[:] = previous[0], previous[1]
+        saved = dict(self.__dict__)  # the rest shape may still refuse: then nothing changed
+        try:
+            self._setup, self._design = new_setup, new
+            self._allocate(new)
+        except Exception:
+            self.__dict__.clear()
+            self.__dict__.update(saved)
+            raise
+        if saved["_design"].grid.mass.size == new.grid.mass.size:
+            self._bar.u[:], self._bar.u_prev[:] = saved["_bar"].u, saved["_bar"].u_prev
+            self._sounding = saved["_sounding"]
 
     def _render(self, out: np.ndarray) -> None:
-        """The mixed pressure (Pa at 1 m) times the level; silence until the first trigger (the
-        bar rests: stepping it would sound only the rounding of its static shape)."""
-        if not self._plucked:
-            out[:] = 0.0
+        """The mixed pressure (Pa at 1 m) times the level (zeros while it rests untouched)."""
+        if not self._sounding:
+            out.fill(0.0)
             return
         run = self._run
         if run is None:
