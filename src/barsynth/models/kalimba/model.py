@@ -23,6 +23,9 @@ MAX_PLUCK_FRACTION = 0.3
 (beyond it the small deflections of the bar equation no longer hold)."""
 TINE_MODES = 4
 """How many modes of the tine on its bridge :meth:`KalimbaModel.describe` gives (from the grid)."""
+CARRIED_MODES = 2
+"""A tine changed while it rings keeps its vibration in this many of its new lowest modes (the
+fundamental and the first overtone: with 4 or 8 a softer bridge clicked, 1.7 x the step measure)."""
 
 
 def kalimba_setup(p: KalimbaParams) -> Setup:
@@ -71,6 +74,20 @@ class KalimbaVoice(EngineVoice):
     def setup(self) -> Setup:
         return kalimba_setup(self._params)
 
+    def _update(self, old: Any) -> None:
+        """As the engine's, but a tine that keeps moving on a new grid of the same size moves
+        about its new rest (a softer bridge, a higher one: the rest shifts; the motion does not jump)."""
+        before = self._rest
+        super()._update(old)
+        if self._rest is not before and self._rest.size == before.size:
+            # the vibration about the old rest, kept in the new tine's lowest modes (what it holds
+            # beyond them is no mode of the new tine and would ring as a click)
+            shapes = _tine_shapes(self._setup, CARRIED_MODES)
+            mass = self._design.grid.mass
+            for u in (self._bar.u, self._bar.u_prev):
+                vibration = u[PAD:-PAD] - before
+                u[PAD:-PAD] = self._rest + shapes @ (shapes.T @ (mass * vibration))
+
     def held_shape(self) -> np.ndarray:
         """The static shape (m, unpadded) with the pluck point pushed down by the displacement
         from where it rests (the bridge lifts the tine: its rest is not at the clamp's height)."""
@@ -79,18 +96,33 @@ class KalimbaVoice(EngineVoice):
         return self._statics(self._contacts, held_at=at, held_m=float(at @ self._rest) - s.pluck_displacement_m)
 
 
-def tine_modes(s: Setup, sample_rate: float, count: int = TINE_MODES) -> tuple[np.ndarray, np.ndarray]:
-    """Frequencies (Hz) and T60s (s) of the whole tine on the grid, clamped, on its bridge (a
-    spring of the bridge's stiffness: a one-sided bridge as while the tine presses on it) and free,
-    as the scheme plays them at ``sample_rate`` (its step lowers them, the higher ones more)."""
-    grid = grid_of(s)
+def _bridge_row(s: Setup, grid) -> np.ndarray:
+    """The bridge's interpolation row over the grid's moving nodes."""
     n = grid.mass.size
     x_padded = np.zeros(n + 2 * PAD)
     x_padded[PAD:-PAD] = grid.x_m
     q, w0, w1 = interpolation_at(x_padded, n, s.edge_m)
     row = np.zeros(n + 2 * PAD)
     row[q], row[q + 1] = w0, w1
-    row = row[PAD:-PAD]
+    return row[PAD:-PAD]
+
+
+def _tine_shapes(s: Setup, count: int) -> np.ndarray:
+    """The lowest ``count`` mode shapes of the tine on its bridge (columns, mass-normalised)."""
+    grid = grid_of(s)
+    row = _bridge_row(s, grid)
+    count = min(count, grid.mass.size)
+    return eigh(grid.stiffness + s.edge_stiffness_n_m * np.outer(row, row), np.diag(grid.mass),
+                subset_by_index=[0, count - 1])[1]
+
+
+def tine_modes(s: Setup, sample_rate: float, count: int = TINE_MODES) -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies (Hz) and T60s (s) of the whole tine on the grid, clamped, on its bridge (a
+    spring of the bridge's stiffness: a one-sided bridge as while the tine presses on it) and free,
+    as the scheme plays them at ``sample_rate`` (its step lowers them, the higher ones more)."""
+    grid = grid_of(s)
+    n = grid.mass.size
+    row = _bridge_row(s, grid)
     bridge = s.edge_stiffness_n_m * np.outer(row, row)
     k = 1.0 / sample_rate
     # The scheme's modes (undamped): the bar's stiffness at theta = 1/2, the bridge's force at the
