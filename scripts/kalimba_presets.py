@@ -81,7 +81,7 @@ def tuned(note: str) -> dict:
     target = script.note_hz(note)
     start = script.tine_length_m(target)
     back = MODEL.table.resolve().back_length_m
-    points = int(round((start + back) / CELL_M)) + 1
+    points = round((start + back) / CELL_M) + 1
 
     def described(length: float) -> float:
         s = kalimba_setup(MODEL.resolve({"vibrating_length_m": length, "points": points}))
@@ -124,8 +124,8 @@ def presets_table() -> str:
     docs/kalimba-notes.md), of the grid's tine on its 1e7 N/m bridge without the time step's warp
     and with it (describe at 48 kHz)."""
     script = _table_script()
-    rows = ["| preset | note (Hz) | vibrating_length_m | b / L | rendered f1 (Hz) | error (cents) | "
-            "rendered f2 / f1 | Chapman's support f2 / f1 | grid, no step warp | grid at 48 kHz |",
+    rows = [("| preset | note (Hz) | vibrating_length_m | b / L | rendered f1 (Hz) | error (cents) | "
+             "rendered f2 / f1 | Chapman's support f2 / f1 | grid, no step warp | grid at 48 kHz |"),
             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for note in script.NOTES:
         parameters = tomllib.loads((FOLDER / f"{note.lower()}.toml").read_text(encoding="utf-8"))["parameters"]

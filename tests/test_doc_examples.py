@@ -45,6 +45,7 @@ MODULES = [
     "barsynth.analysis.plots",
     "barsynth.parameters",
     "barsynth.extras",
+    "barsynth.models.kalimba.model",
 ]
 
 
