@@ -158,7 +158,7 @@ def test_the_energy_lost_is_the_energy_the_losses_and_contacts_took(settings):
     end = v.energy_j()
     taken = end["lost_losses"] + end["lost_contact"]
     assert taken > 0.5 * start["total"]  # most of it is gone in a second
-    assert abs(start["total"] - end["total"] - taken) < 1e-6 * start["total"]  # (spec: 1 %)
+    assert abs(start["total"] - end["total"] - taken) < 1e-5 * start["total"]  # (spec: 1 %; measured <= 2e-6)
     assert np.all(np.diff(totals) <= 1e-9 * start["total"])  # never gained
     assert end["lost_contact"] > 0.0
 
