@@ -27,7 +27,7 @@ from clicks import MAX_STEP_RATIO, largest_step, step_ratio
 RATE = 48000
 MS = RATE // 1000
 BASE = {"twang": {"free_bar_gain": 0.0, "q": 800.0}, "farnell": {}, "banded": {}, "allpass": {},
-        "fd": {"points": 60, "oversampling": 2}, "kalimba": {}}
+        "fd": {"points": 60, "oversampling": 2}, "ruler": {}, "kalimba": {}}
 
 
 def changed(model_name: str, name: str, value, *, crossfade: bool) -> tuple[np.ndarray, int]:

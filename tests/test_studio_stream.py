@@ -54,6 +54,18 @@ def test_the_stream_is_the_models_sound_times_one_gain():
     assert np.max(np.abs(x)) == pytest.approx(10 ** (-6 / 20), rel=1e-4)
 
 
+def test_the_physical_twang_streams_its_own_sound():
+    """The ruler (a finite-difference bar with contacts solved each sample) streams block for
+    block the samples of its offline render, times the gain set at the start."""
+    stream = started("ruler", {})
+    stream.handle({"type": "trigger"})
+    x, _ = play(stream, 1.0)
+    offline = get_model("ruler").render({}, duration_s=x.size / RATE, sample_rate=RATE, normalize=False,
+                                        dtype=np.float64)
+    gain = np.max(np.abs(x)) / np.max(np.abs(offline[:x.size]))
+    np.testing.assert_allclose(x, (offline * gain).astype(np.float32), rtol=0, atol=2e-6)
+
+
 def test_the_server_never_runs_more_than_the_lead_ahead():
     stream = started()
     stream.handle({"type": "trigger"})

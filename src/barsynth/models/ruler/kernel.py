@@ -41,7 +41,7 @@ PAD = 2
 
 MAX_NEWTON_STEPS = 60
 ABSOLUTE_TOLERANCE_M = 1e-15
-RELATIVE_TOLERANCE = 1e-12
+RELATIVE_TOLERANCE = 1e-8
 
 
 class Scheme(NamedTuple):
@@ -380,6 +380,7 @@ def process(out, scheme, bar, contacts, edge, output):  # pragma: no cover - com
                 v[q] = 2.0 * u[q] - u_prev[q]
             inexact, refactor, on_desk = _contact_terms(contacts, v, u, u_prev, half_rate)
             iterations = 0
+            previous_move = 0.0
             for _ in range(MAX_NEWTON_STEPS):
                 _residual(bar, scheme, contacts)
                 if refactor:
@@ -396,8 +397,12 @@ def process(out, scheme, bar, contacts, edge, output):  # pragma: no cover - com
                 inexact, refactor, on_desk = _contact_terms(contacts, v, u, u_prev, half_rate)
                 if scheme.linear and not inexact:
                     break  # linear on unchanged pieces: this iteration was exact
-                if largest_move <= ABSOLUTE_TOLERANCE_M + RELATIVE_TOLERANCE * largest:
+                tolerance = ABSOLUTE_TOLERANCE_M + RELATIVE_TOLERANCE * largest
+                if largest_move <= tolerance:
                     break
+                if iterations > 1 and largest_move * largest_move <= tolerance * previous_move:
+                    break  # converging quadratically: the next move would be within the tolerance
+                previous_move = largest_move
             state.iterations += iterations
             state.steps += 1
             if iterations > state.most_iterations:

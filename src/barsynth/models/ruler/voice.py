@@ -20,6 +20,8 @@ from .design import THETA, Design, Setup, design, desk_modes_for, interpolation_
 from .desk import DESKS, desk_bank, desk_modes, reset_desk
 from .statics import _laws, _rows as _contact_rows, static_shape
 
+BAR_FIELDS = ("youngs_modulus_pa", "density_kg_m3", "length_m", "thickness_m", "width_m", "clamped_back", "points")
+"""What makes the bar itself: a change of any starts another bar, at rest."""
 CHUNK = 256
 """Samples per piece of the desk's bank (the kernel's scratch)."""
 
@@ -138,8 +140,9 @@ class EngineVoice(Voice):
         self._sounding = True
 
     def _update(self, old: Any) -> None:
-        """A new level glides there; any other change makes the design anew and the bar rests on
-        its new supports if the grid changed, else keeps moving (the studio cross-fades it)."""
+        """A new level glides there; any other change makes the design anew: the same bar keeps
+        moving on its new supports, another bar (material, size, grid) starts at rest (the studio
+        cross-fades either)."""
         new_setup = self.setup()
         changed = {f for f in old.__dataclass_fields__ if getattr(old, f) != getattr(self._params, f)}
         if changed <= {"level_db"}:
@@ -155,7 +158,8 @@ class EngineVoice(Voice):
             self.__dict__.clear()
             self.__dict__.update(saved)
             raise
-        if saved["_design"].grid.mass.size == new.grid.mass.size:
+        old_bar = tuple(getattr(saved["_setup"], name) for name in BAR_FIELDS)
+        if old_bar == tuple(getattr(new_setup, name) for name in BAR_FIELDS):
             self._bar.u[:], self._bar.u_prev[:] = saved["_bar"].u, saved["_bar"].u_prev
             self._sounding = saved["_sounding"]
 
