@@ -15,7 +15,7 @@ from ..rendering import check_sample_rate
 from ..ruler.design import MIN_NODES_BEYOND, Setup, grid_of, interpolation_at, sigma1_of
 from ..ruler.kernel import PAD
 from ..ruler.model import describe_engine
-from ..ruler.voice import EngineVoice
+from ..ruler.voice import BAR_FIELDS, EngineVoice
 from .table import KALIMBA_TABLE, KalimbaParams
 
 MAX_PLUCK_FRACTION = 0.3
@@ -23,9 +23,8 @@ MAX_PLUCK_FRACTION = 0.3
 (beyond it the small deflections of the bar equation no longer hold)."""
 TINE_MODES = 4
 """How many modes of the tine on its bridge :meth:`KalimbaModel.describe` gives (from the grid)."""
-TINE_FIELDS = ("youngs_modulus_pa", "density_kg_m3", "length_m", "thickness_m", "width_m", "edge_m",
-               "edge_stiffness_n_m", "edge_height_m", "edge_two_sided")
-"""The setup's fields that move the tine's rest or its modes (not its losses, pluck or level)."""
+BRIDGE_FIELDS = ("edge_m", "edge_stiffness_n_m", "edge_height_m", "edge_two_sided")
+"""The setup's fields of the bridge: a change moves the tine's rest and its modes."""
 CARRIED_MODES = 2
 """A tine changed while it rings keeps its vibration in this many of its new lowest modes (the
 fundamental and the first overtone: with 4 or 8 a softer bridge clicked, 1.7 x the step measure)."""
@@ -78,12 +77,13 @@ class KalimbaVoice(EngineVoice):
         return kalimba_setup(self._params)
 
     def _update(self, old: Any) -> None:
-        """As the engine's, but a tine that keeps moving on a new grid of the same size moves
-        about its new rest (a softer bridge, a higher one: the rest shifts; the motion does not jump)."""
+        """As the engine's, but a tine that keeps moving on a new bridge (softer, higher, pinned)
+        moves about its new rest (the rest shifts; the motion does not jump)."""
         before, setup = self._rest, self._setup
         super()._update(old)
-        moved = any(getattr(setup, f) != getattr(self._setup, f) for f in TINE_FIELDS)
-        if moved and self._rest is not before and self._rest.size == before.size:
+        kept = all(getattr(setup, f) == getattr(self._setup, f) for f in BAR_FIELDS)  # else: a new tine, at rest
+        moved = any(getattr(setup, f) != getattr(self._setup, f) for f in BRIDGE_FIELDS)
+        if kept and moved:
             # the vibration about the old rest, kept in the new tine's lowest modes (what it holds
             # beyond them is no mode of the new tine and would ring as a click)
             shapes = _tine_shapes(self._setup, CARRIED_MODES)
