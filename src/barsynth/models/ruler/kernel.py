@@ -172,7 +172,9 @@ class Output(NamedTuple):
 
 
 # The contact functions are compiled on their own and only called from process (as the fd
-# kernel's exciters are): no wrappers, no cache of their own.
+# kernel's exciters are): no wrappers, no cache of their own. The three called every step
+# (_contact_terms, _residual, _solve_in_place) are inlined: passing the records to a call each
+# time cost 13 % of the default twang (5.5x -> 6.3x real time).
 _INNER = {"nogil": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True, "fastmath": {"contract"},
           "error_model": "numpy"}
 
@@ -217,7 +219,7 @@ def _gradient(after, before, k, a, two_sided):  # pragma: no cover - compiled
     return phi, (_derivative(after, k, a, two_sided) - phi) / gap
 
 
-@njit(**_INNER)
+@njit(inline='always', **_INNER)
 def _contact_terms(contacts, v, u, u_prev, half_rate):  # pragma: no cover - compiled
     """Each contact's force and slope at the iterate ``v``. Returns whether the last linearisation
     may not have been exact (a contact changed the piece of its law it is on, or one meets or parts
@@ -274,7 +276,7 @@ def _contact_terms(contacts, v, u, u_prev, half_rate):  # pragma: no cover - com
     return inexact, refactor, on_desk
 
 
-@njit(**_INNER)
+@njit(inline='always', **_INNER)
 def _residual(bar, scheme, contacts):  # pragma: no cover - compiled
     """``bar.residual <- A (v + u-) - rhs + sum_e sign_e J_e t_e``."""
     v, u_prev, rhs, res = bar.v, bar.u_prev, bar.rhs, bar.residual
@@ -294,7 +296,7 @@ def _residual(bar, scheme, contacts):  # pragma: no cover - compiled
         res[q + 1] += push * contacts.w1[e]
 
 
-@njit(**_INNER)
+@njit(inline='always', **_INNER)
 def _solve_in_place(x, factors):  # pragma: no cover - compiled
     """``x <- J^-1 x`` with the factors of :func:`_factor`."""
     l1, l2, inv_d = factors[0], factors[1], factors[2]
