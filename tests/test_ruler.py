@@ -301,7 +301,7 @@ def test_describe_gives_both_cantilevers_and_the_desk():
     ({"finger_distance_m": 0.2}, "finger_distance_m = 0.2 m puts the finger beyond the ruler's back end"),
     ({"tip_displacement_mm": 60.0}, "tip_displacement_mm = 60"),
     ({"overhang_m": 0.025, "tip_displacement_mm": 5.0}, "grid cells"),
-    ({"slide_m": 0.17}, "after the slide"),
+    ({"slide_m": 0.17}, "slide_m = 0.17 m leave 1 cm beyond the edge after the slide"),
 ])
 def test_bad_geometry_is_one_clear_line(settings, words):
     with pytest.raises(ParameterError) as info:

@@ -18,7 +18,8 @@ and its force ``t_e`` is the discrete gradient ``(V(eta+) - V(eta-)) / (eta+ - e
 never pulling (a one-sided contact's force is at least 0). Each step solves the pentadiagonal
 system for ``u+`` by Newton's method, whose Jacobian ``A + sum_e dt_e/d(eta) J_e J_e^T`` is
 pentadiagonal too (``J_e`` touches two neighbours at most): one ``L D L^T`` factorisation per
-iteration, kept while the contacts' coefficients do not change. With linear contacts
+iteration, kept while the contacts' slopes do not change and none of them moves (a slide
+factors anew each step). With linear contacts
 (``a = 1``) a step whose contacts neither meet nor part is linear: one iteration solves it exactly.
 
 What it reads and writes comes as named records (NamedTuples of arrays; scalars that change are
@@ -145,8 +146,11 @@ class Edge(NamedTuple):
 
 
 OUTPUT_STATE = np.dtype([("track", np.bool_), ("lost_losses_j", np.float64), ("lost_contact_j", np.float64),
-                         ("iterations", np.int64), ("steps", np.int64), ("most_iterations", np.int64)])
-"""Whether the energy the losses and the contacts' damping take is summed (J), and the solver's counts."""
+                         ("iterations", np.int64), ("steps", np.int64), ("most_iterations", np.int64),
+                         ("unconverged", np.int64)])
+"""Whether the energy the losses and the contacts' damping take is summed (J), and the solver's
+counts: iterations, steps, the most iterations a step took, steps that ran out of iterations
+(taken as they stood)."""
 
 
 class Output(NamedTuple):
@@ -212,7 +216,7 @@ def _gradient(after, before, k, a, two_sided):  # pragma: no cover - compiled
     """The discrete gradient ``(V(after) - V(before)) / (after - before)`` (N) and its derivative
     in ``after`` (N/m); at coinciding arguments ``V'`` and ``V'' / 2`` of their middle."""
     gap = after - before
-    if abs(gap) <= 1e-9 * (abs(after) + abs(before)) + 1e-300:
+    if abs(gap) <= 1e-6 * (abs(after) + abs(before)) + 1e-300:  # (below, the slope's quotient cancels)
         middle = 0.5 * (after + before)
         return _derivative(middle, k, a, two_sided), 0.5 * _second(middle, k, a, two_sided)
     phi = (_potential(after, k, a, two_sided) - _potential(before, k, a, two_sided)) / gap
@@ -330,6 +334,8 @@ def place_edge(edge, contacts, output, x_edge):  # pragma: no cover - compiled
         _interpolate(edge, contacts, edge.edge, x_edge)
     if edge.finger >= 0:
         _interpolate(edge, contacts, edge.finger, x_edge - edge.finger_back_m)
+    for e in range(contacts.factored.size):  # the Jacobian moved with them: factor it anew
+        contacts.factored[e] = np.nan
 
 
 @njit(**_PLACING)
@@ -405,6 +411,8 @@ def process(out, scheme, bar, contacts, edge, output):  # pragma: no cover - com
                 if iterations > 1 and largest_move * largest_move <= tolerance * previous_move:
                     break  # converging quadratically: the next move would be within the tolerance
                 previous_move = largest_move
+            if iterations >= MAX_NEWTON_STEPS:
+                state.unconverged += 1
             state.iterations += iterations
             state.steps += 1
             if iterations > state.most_iterations:

@@ -11,7 +11,7 @@ from ...checks import show_value
 from ...errors import ParameterError
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
-from .design import EDGE_LENGTH_M, Setup, desk_modes_for, sigma1_of
+from .design import EDGE_LENGTH_M, MIN_NODES_BEYOND, Setup, desk_modes_for, sigma1_of
 from .table import RULER_TABLE, RulerParams
 from .voice import EngineVoice
 
@@ -30,7 +30,17 @@ def ruler_setup(p: RulerParams) -> Setup:
     if not p.finger_distance_m < edge:
         raise ParameterError(f"parameter finger_distance_m = {show_value(p.finger_distance_m)} m puts the finger "
                              f"beyond the ruler's back end; allowed: less than length_m - overhang_m = "
-                             f"{edge:.4g} m")
+                             f"{edge:.6g} m")
+    dx = p.length_m / (p.points - 1)
+    beyond = p.overhang_m - p.slide_m
+    if beyond < MIN_NODES_BEYOND * dx:
+        named = (f"parameters overhang_m = {show_value(p.overhang_m)} m and slide_m = {show_value(p.slide_m)} m leave"
+                 if p.slide_m > 0 else f"parameter overhang_m = {show_value(p.overhang_m)} m leaves")
+        left = f"{beyond * 100:.3g} cm beyond the edge" if beyond > 0 else "nothing beyond the edge"
+        raise ParameterError(f"{named} {left}{' after the slide' if p.slide_m > 0 else ''}: "
+                             f"{max(beyond, 0.0) / dx:.3g} grid cells of {dx * 1000:.3g} mm (points = {p.points}); "
+                             f"allowed: at least {MIN_NODES_BEYOND} grid cells, overhang_m - slide_m >= "
+                             f"{MIN_NODES_BEYOND * dx:.4g} m (a longer overhang_m, a shorter slide_m or more points)")
     tip = p.tip_displacement_mm / 1000.0
     if tip > MAX_TIP_FRACTION * p.overhang_m:
         raise ParameterError(f"parameter tip_displacement_mm = {show_value(p.tip_displacement_mm)} mm bends the "
@@ -62,6 +72,13 @@ class RulerVoice(EngineVoice):
 
     def setup(self) -> Setup:
         return ruler_setup(self._params)
+
+    def no_rest_message(self) -> str:
+        p = self._params
+        return (f"the ruler finds no rest on these supports with finger_force_n = {show_value(p.finger_force_n)} N "
+                f"{p.finger_distance_m * 100:.3g} cm behind the edge and tip_displacement_mm = "
+                f"{show_value(p.tip_displacement_mm)} mm; allowed: a larger finger_force_n or finger_stiffness_n_m, "
+                f"or a smaller tip_displacement_mm")
 
 
 def cantilever_modes(s: Setup, length_m: float, count: int) -> tuple[np.ndarray, np.ndarray]:

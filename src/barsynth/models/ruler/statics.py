@@ -64,36 +64,51 @@ def static_shape(stiffness: np.ndarray, gravity: np.ndarray, contacts: K.Contact
     multiplier = 0.0
     for _ in range(MAX_STEPS):
         eta = sign * (rows @ u - offset)
-        _, d, second = _laws(eta, contacts)
+        potential, d, second = _laws(eta, contacts)
         gradient = stiffness @ u - external + rows.T @ (sign * d)
+        # a touch of regularisation keeps the step defined where nothing holds the bar yet (a Hertzian
+        # contact has no stiffness at first touch); it biases the step, not where it ends: the stop is
+        # on the energy Newton's step would still gain
         hessian = stiffness + (rows.T * second) @ rows + 1e-12 * scale * np.eye(n)
+        solved = _newton_step(hessian, gradient, held_at)
+        if solved is None:
+            break
+        step, multiplier = solved
+        size = float(np.max(np.abs(step)))
+        reach = float(np.max(np.abs(u)))
+        decrement = -float(gradient @ step)  # what Newton's step would still lower the energy by, twice (J)
+        rounding = 64.0 * np.finfo(float).eps * (float(0.5 * np.abs(u) @ np.abs(stiffness) @ np.abs(u)
+                                                       + np.abs(external) @ np.abs(u)) + float(np.sum(potential)))
+        if size <= 1e-14 + 1e-10 * reach or decrement <= rounding:
+            return u + step, -multiplier
+        before = energy(u)
+        t = 1.0
+        while t > 1e-12 and energy(u + t * step) > before - 1e-4 * t * decrement + rounding:
+            t *= 0.5
+        if t <= 1e-12:  # no decrease the energy's rounding lets us see
+            if decrement <= 1e3 * rounding:
+                return u + step, -multiplier
+            break
+        u = u + t * step
+    raise NoRest("the bar has no rest on these supports; allowed: supports that hold it")
+
+
+def _newton_step(hessian: np.ndarray, gradient: np.ndarray,
+                 held_at: np.ndarray | None) -> tuple[np.ndarray, float] | None:
+    """Newton's step (and the holding point's multiplier, 0 when nothing is held), or None when
+    the system is singular."""
+    n = gradient.size
+    try:
         if held_at is None:
-            step = -np.linalg.solve(hessian, gradient)
+            step, multiplier = -np.linalg.solve(hessian, gradient), 0.0
         else:
             kkt = np.block([[hessian, held_at[:, None]], [held_at[None, :], np.zeros((1, 1))]])
             solution = np.linalg.solve(kkt, np.concatenate([-gradient, [0.0]]))
             step, multiplier = solution[:n], float(solution[n])
-        if not np.all(np.isfinite(step)):
-            break
-        size = float(np.max(np.abs(step)))
-        reach = float(np.max(np.abs(u)))
-        if size <= 1e-14 + 1e-8 * reach:
-            return u + step, -multiplier if held_at is not None else 0.0
-        before = energy(u)
-        t = 1.0
-        slope = float(gradient @ step)
-        while t > 1e-12 and energy(u + t * step) > before + 1e-4 * t * slope + 1e-15 * abs(before):
-            t *= 0.5
-        rounding = 64.0 * np.finfo(float).eps * float(0.5 * np.abs(u) @ np.abs(stiffness) @ np.abs(u)
-                                                       + np.abs(external) @ np.abs(u))
-        if t < 1.0 and -slope <= rounding:  # the decrease left is below the energy's rounding (u K u
-            # cancels: a stiff bridge under a smooth tine), so the line search cannot see it: Newton's step
-            return u + step, -multiplier if held_at is not None else 0.0
-        moved = u + t * step
-        if t <= 1e-12 or np.array_equal(moved, u):  # no decrease left to find: flat to rounding here
-            if size <= 1e-12 + 1e-6 * reach:
-                return u + step, -multiplier if held_at is not None else 0.0
-            break
-        u = moved
-    raise ParameterError("the bar has no rest on these supports (the finger cannot hold it down, or it is not "
-                         "supported at all); allowed: a larger finger_force_n or a smaller displacement")
+    except np.linalg.LinAlgError:
+        return None
+    return (step, multiplier) if np.all(np.isfinite(step)) and np.isfinite(multiplier) else None
+
+
+class NoRest(ParameterError):
+    """The bar finds no static rest on its supports (the model's voice says which settings)."""

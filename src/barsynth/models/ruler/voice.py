@@ -8,17 +8,19 @@ hand that bends the ruler again stops what rang.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
 from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp_now
+from ...errors import ParameterError
 from ...jitstart import compiled_for
 from ..base import Voice
 from . import kernel as K
 from .design import THETA, Design, Setup, design, desk_modes_for, interpolation_at
 from .desk import DESKS, desk_bank, desk_modes, reset_desk
-from .statics import _laws, _rows as _contact_rows, static_shape
+from .statics import NoRest, _laws, _rows as _contact_rows, static_shape
 
 BAR_FIELDS = ("youngs_modulus_pa", "density_kg_m3", "length_m", "thickness_m", "width_m", "clamped_back", "points")
 """What makes the bar itself: a change of any starts another bar, at rest."""
@@ -89,6 +91,14 @@ class EngineVoice(Voice):
         return K.Output(d.radiation.copy(), np.zeros(CHUNK), np.zeros(CHUNK), bank, bar_gain, desk_gain, 0.0,
                         self._level, self._output_state)
 
+    def _edge_at(self, steps: int) -> float:
+        """Where the slide has moved the edge (m) ``steps`` steps after the release (as the kernel moves it)."""
+        s = self._setup
+        if s.slide_m <= 0.0:
+            return s.edge_m
+        total = max(1, int(round(s.slide_time_s * self.sample_rate)))
+        return s.edge_m + s.slide_m * (0.5 - 0.5 * math.cos(math.pi * min(steps, total) / total))
+
     def _place(self, x_edge: float) -> None:
         K.place_edge(self._edge, self._contacts, self._output, x_edge)
 
@@ -102,7 +112,15 @@ class EngineVoice(Voice):
 
     def _statics(self, contacts: K.Contacts, **held: Any) -> np.ndarray:
         gravity = self._design.scheme.gravity[K.PAD:-K.PAD]
-        return static_shape(self._design.grid.stiffness, gravity, contacts, **held)[0]
+        try:
+            return static_shape(self._design.grid.stiffness, gravity, contacts, **held)[0]
+        except NoRest:
+            raise ParameterError(self.no_rest_message()) from None
+
+    def no_rest_message(self) -> str:
+        """The one line that refuses settings under which the bar finds no static rest."""
+        return ("the bar finds no rest on these supports; allowed: a firmer hold (a larger force or stiffness) "
+                "or a smaller displacement")
 
     def _rest_shape(self) -> np.ndarray:
         """The bar at rest; the finger's surface set where it presses with its force there."""
@@ -160,8 +178,14 @@ class EngineVoice(Voice):
             raise
         old_bar = tuple(getattr(saved["_setup"], name) for name in BAR_FIELDS)
         if old_bar == tuple(getattr(new_setup, name) for name in BAR_FIELDS):
+            # the same bar: it keeps moving, the slide carries on where it was, the desk rings on
             self._bar.u[:], self._bar.u_prev[:] = saved["_bar"].u, saved["_bar"].u_prev
             self._sounding = saved["_sounding"]
+            steps = int(saved["_edge"].state["steps"][0])
+            self._edge.state["steps"] = steps
+            self._place(self._edge_at(steps))
+            if saved["_setup"].desk == new_setup.desk:
+                self._output = self._output._replace(desk=saved["_output"].desk)
 
     def _render(self, out: np.ndarray) -> None:
         """The mixed pressure (Pa at 1 m) times the level (zeros while it rests untouched)."""
