@@ -32,7 +32,9 @@ CASES = (("twang", {}, "length_m", (0.25, 0.3)),
          ("banded (bowed)", {"excitation": "bow", "bow_duration_s": 600.0}, "bow_force_n", (3.0, 4.0)),
          ("allpass", {}, "level_db", (0.0, -6.0)),
          ("fd (4 steps)", {}, "level_db", (0.0, -6.0)),
-         ("fd (1 step)", {"oversampling": 1}, "level_db", (0.0, -6.0)))
+         ("fd (1 step)", {"oversampling": 1}, "level_db", (0.0, -6.0)),
+         ("ruler", {}, "finger_force_n", (20.0, 25.0)),
+         ("kalimba", {}, "q", (2000.0, 2500.0)))
 
 
 def measure(model: str, parameters: dict, name: str, values: tuple, seconds: float, changing: bool) -> np.ndarray:

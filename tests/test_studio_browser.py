@@ -28,9 +28,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import soundfile
-from barsynth.models import model_names
 from browser import ServerProcess, chromium, screenshot_folder
 from playwright.sync_api import Page, expect
+
+from barsynth.models import model_names
 
 STUDIO_COMMAND = [sys.executable, "-m", "barsynth", "studio", "--port", "0"]
 RATE = 48000

@@ -13,14 +13,21 @@ from typing import Any
 
 import numpy as np
 
-from ...dsp.smoothing import LEVEL_GLIDE_S, MULTIPLICATIVE, SMOOTHED_STATE, TARGET, ramp_steps, start_ramp_now
+from ...dsp.smoothing import (
+    LEVEL_GLIDE_S,
+    MULTIPLICATIVE,
+    SMOOTHED_STATE,
+    ramp_steps,
+    start_ramp_now,
+)
 from ...errors import ParameterError
 from ...jitstart import compiled_for
 from ..base import Voice
 from . import kernel as K
 from .design import THETA, Design, Setup, design, desk_modes_for, interpolation_at
 from .desk import DESKS, desk_bank, desk_modes, reset_desk
-from .statics import NoRest, _laws, _rows as _contact_rows, static_shape
+from .statics import NoRest, _laws, static_shape
+from .statics import _rows as _contact_rows
 
 BAR_FIELDS = ("youngs_modulus_pa", "density_kg_m3", "length_m", "thickness_m", "width_m", "clamped_back", "points")
 """What makes the bar itself: a change of any starts another bar, at rest."""
