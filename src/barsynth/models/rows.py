@@ -29,6 +29,27 @@ def bar_size_parameters(note: str = "", when: Any = (), shear: bool = False) -> 
     ]
 
 
+def resized_bar_parameters(defaults: dict[str, Any], docs: dict[str, str] | None = None,
+                           ranges: dict[str, tuple[float, float]] | None = None,
+                           leave_out: tuple[str, ...] = ()) -> list[Parameter]:
+    """:func:`bar_size_parameters` for a model whose bar is a thing of its own size (a ruler, a
+    tine): each row's default from ``defaults``, and where given its doc from ``docs`` and its
+    range from ``ranges`` (minimum, maximum); the rows named in ``leave_out`` left out."""
+    import dataclasses
+
+    rows = []
+    for row in bar_size_parameters():
+        if row.name in leave_out:
+            continue
+        changes: dict[str, Any] = {"default": defaults[row.name]}
+        if docs and row.name in docs:
+            changes["doc"] = docs[row.name]
+        if ranges and row.name in ranges:
+            changes["minimum"], changes["maximum"] = ranges[row.name]
+        rows.append(dataclasses.replace(row, **changes))
+    return rows
+
+
 def excitation_parameter(exciters: tuple[type[Exciter], ...]) -> Parameter:
     """``excitation``: which of a model's ``exciters`` a trigger uses (the first by default), in
     their order, with their summaries as its doc."""
@@ -38,9 +59,10 @@ def excitation_parameter(exciters: tuple[type[Exciter], ...]) -> Parameter:
                      kind=CHOICE, choices=tuple(e.name for e in exciters))
 
 
-def level_parameter() -> Parameter:
-    """``level_db``: the output gain of a bar model whose raw output is a velocity (m/s)."""
-    return Parameter("level_db", "dB", -60.0, 40.0, 0.0, "output gain re the pick-up velocity in m/s")
+def level_parameter(reference: str = "the pick-up velocity in m/s") -> Parameter:
+    """``level_db``: the output gain of a bar model, re what its raw output is (by default a
+    velocity, m/s)."""
+    return Parameter("level_db", "dB", -60.0, 40.0, 0.0, f"output gain re {reference}")
 
 
 def material_parameter(note: str = "", when: Any = (), shear: bool = False) -> Parameter:

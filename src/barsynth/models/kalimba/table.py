@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
-from ..rows import bar_size_parameters, level_parameter
+from ..rows import level_parameter, resized_bar_parameters
 
 BRIDGES = ("one-sided", "pinned")
 """How the bridge holds the tine: pressed onto it from above (it may lift off), or both ways."""
@@ -44,19 +43,8 @@ def _tine_size() -> list[Parameter]:
                 "width_m": 0.004}
     docs = {"thickness_m": "thickness of the tine (f1 grows with it)",
             "width_m": "width of the tine (sets its mass and how much air it moves, not its pitch)"}
-    rows = []
-    for row in bar_size_parameters():
-        if row.name == "length_m":
-            continue
-        changes = {"default": defaults[row.name]}
-        if row.name in docs:
-            changes["doc"] = docs[row.name]
-        if row.name == "thickness_m":
-            changes.update(maximum=0.005)
-        if row.name == "width_m":
-            changes.update(maximum=0.03)
-        rows.append(dataclasses.replace(row, **changes))
-    return rows
+    return resized_bar_parameters(defaults, docs, {"thickness_m": (0.0003, 0.005), "width_m": (0.002, 0.03)},
+                                  leave_out=("length_m",))
 
 
 KALIMBA_TABLE = ParameterTable(
@@ -89,7 +77,7 @@ KALIMBA_TABLE = ParameterTable(
                   "loss at every frequency (the mounting, the air): T60 = 6.91 / sigma0 alone"),
         Parameter("points", "", 20, 400, 60,
                   "grid nodes along the whole tine (clamp to tip): more are more accurate and slower", kind=INT),
-        dataclasses.replace(level_parameter(), doc="output gain re the pressure in Pa at 1 m"),
+        level_parameter("the pressure in Pa at 1 m"),
     ],
     record=KalimbaParams,
 )

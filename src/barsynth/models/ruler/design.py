@@ -1,5 +1,5 @@
 """The ruler engine's design: a :class:`Setup` (the bar, its contacts, the sound) and a sample rate
-in, the kernel's records out (no state), plus the static shapes it starts from.
+in, the kernel's records out (no state); the static shapes it starts from are :mod:`.statics`'s.
 
 The same engine plays the ruler on a desk (:mod:`barsynth.models.ruler`) and the kalimba's tine
 on its bridge (:mod:`barsynth.models.kalimba`): a bar on the grid of

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 from ...parameters import CHOICE, INT, Parameter, ParameterTable, Sets
-from ..rows import bar_size_parameters, level_parameter
+from ..rows import level_parameter, resized_bar_parameters
 from .desk import DESK_NAMES, DESKS
 
 
@@ -57,17 +56,7 @@ def _ruler_size() -> list[Parameter]:
                 "thickness_m": 0.003, "width_m": 0.03}
     docs = {"length_m": "length of the ruler", "thickness_m": "thickness of the ruler",
             "width_m": "width of the ruler (sets its mass and how much air it moves)"}
-    rows = []
-    for row in bar_size_parameters():
-        changes = {"default": defaults[row.name]}
-        if row.name in docs:
-            changes["doc"] = docs[row.name]
-        if row.name == "length_m":
-            changes.update(minimum=0.05, maximum=1.0)
-        if row.name == "thickness_m":
-            changes.update(maximum=0.02)
-        rows.append(dataclasses.replace(row, **changes))
-    return rows
+    return resized_bar_parameters(defaults, docs, {"length_m": (0.05, 1.0), "thickness_m": (0.0003, 0.02)})
 
 
 RULER_TABLE = ParameterTable(
@@ -108,7 +97,7 @@ RULER_TABLE = ParameterTable(
                   "0: only the ruler's sound, 1: only the desk's, 0.5: both as loud as physics makes them"),
         Parameter("points", "", 20, 400, 61, "grid nodes along the ruler: more are more accurate and slower",
                   kind=INT),
-        level_parameter(),
+        level_parameter("the pressure in Pa at 1 m"),
     ],
     record=RulerParams,
 )
