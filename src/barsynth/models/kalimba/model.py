@@ -12,7 +12,7 @@ from ...checks import show_value
 from ...errors import ParameterError
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
-from ..ruler.design import MIN_NODES_BEYOND, Setup, grid_of, interpolation_at, sigma1_of
+from ..ruler.design import MIN_NODES_BEYOND, Setup, decay_rate, grid_of, point_row
 from ..ruler.kernel import PAD
 from ..ruler.model import describe_engine
 from ..ruler.voice import BAR_FIELDS, EngineVoice
@@ -105,10 +105,7 @@ def _bridge_row(s: Setup, grid) -> np.ndarray:
     n = grid.mass.size
     x_padded = np.zeros(n + 2 * PAD)
     x_padded[PAD:-PAD] = grid.x_m
-    q, w0, w1 = interpolation_at(x_padded, n, s.edge_m)
-    row = np.zeros(n + 2 * PAD)
-    row[q], row[q + 1] = w0, w1
-    return row[PAD:-PAD]
+    return point_row(x_padded, n, s.edge_m)
 
 
 def _tine_shapes(s: Setup, count: int) -> np.ndarray:
@@ -137,9 +134,7 @@ def tine_modes(s: Setup, sample_rate: float, count: int = TINE_MODES) -> tuple[n
               eigvals_only=True, subset_by_index=[0, count - 1])
     omega = 2.0 / k * np.arcsin(np.sqrt(np.clip(mu, 0.0, 1.0)))
     lam = eigh(grid.stiffness + bridge, np.diag(grid.mass), eigvals_only=True, subset_by_index=[0, count - 1])
-    c = math.sqrt(s.youngs_modulus_pa * s.thickness_m ** 2 / (12.0 * s.density_kg_m3))
-    sigma = s.sigma0_per_s + sigma1_of(s) * np.sqrt(lam) / c
-    return omega / (2.0 * math.pi), math.log(1000.0) / sigma
+    return omega / (2.0 * math.pi), math.log(1000.0) / decay_rate(s, np.sqrt(lam))
 
 
 class KalimbaModel(Model):

@@ -16,7 +16,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...errors import ParameterError
 from ...physics.grid import BarGrid, bar_grid
 from . import kernel as K
 from .desk import DESKS, DeskModes, desk_modes
@@ -38,7 +37,8 @@ modes with a nodal line there are not all silent)."""
 LOWEST_DESK_HZ = 20.0
 """Desk modes below this (Hz) are left out: inaudible, and they would ring on for a minute."""
 MIN_NODES_BEYOND = 6
-"""The vibrating part (beyond the edge or bridge) must span at least this many grid cells."""
+"""The vibrating part (beyond the edge or bridge) must span at least this many grid cells (each
+model's setup refuses less, naming its own parameters)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -100,6 +100,22 @@ def sigma1_of(s: Setup) -> float:
     return c / (2.0 * s.q)
 
 
+def decay_rate(s: Setup, omega: np.ndarray) -> np.ndarray:
+    """The decay rate (1/s) of a mode of angular frequency ``omega`` (rad/s): ``sigma0 + omega /
+    (2 Q)`` (:func:`sigma1_of`'s loss is ``omega / (2 Q)`` for every mode of the uniform bar)."""
+    return s.sigma0_per_s + omega / (2.0 * s.q)
+
+
+def point_row(x_padded: np.ndarray, n: int, position_m: float) -> np.ndarray:
+    """The interpolation row of the point ``position_m`` over the ``n`` moving nodes (unpadded):
+    a unit force there, and the reading of a displacement there."""
+    q, w0, w1 = interpolation_at(x_padded, n, position_m)
+    row = np.zeros(n + 2 * K.PAD)
+    row[q] += w0
+    row[q + 1] += w1
+    return row[K.PAD:K.PAD + n]
+
+
 def grid_of(s: Setup) -> BarGrid:
     return bar_grid(youngs_modulus_pa=s.youngs_modulus_pa, density_kg_m3=s.density_kg_m3, length_m=s.length_m,
                     thickness_m=s.thickness_m, width_m=s.width_m,
@@ -124,20 +140,10 @@ class Design(NamedTuple):
     """Pressure at 1 m per node acceleration per metre of cell (Pa / (m/s^2 m))."""
 
 
-def check_geometry(s: Setup) -> None:
-    """Bad geometry as one line: the vibrating part too short for the grid, the finger off the ruler."""
-    dx = s.length_m / (s.points - 1)
-    beyond = s.length_m - s.edge_m - s.slide_m
-    if beyond < MIN_NODES_BEYOND * dx:
-        raise ParameterError(
-            f"the vibrating part ({beyond * 100:.3g} cm beyond the edge{' after the slide' if s.slide_m else ''}) "
-            f"spans {beyond / dx:.3g} grid cells of {dx * 1000:.3g} mm; allowed: at least {MIN_NODES_BEYOND} "
-            f"(more points, or a longer overhang)")
-
-
 def design(s: Setup, sample_rate: float) -> Design:
-    """The scheme and the contacts for ``s`` at ``sample_rate`` Hz, the edge at its start."""
-    check_geometry(s)
+    """The scheme and the contacts for ``s`` at ``sample_rate`` Hz, the edge at its start (the
+    model's setup has refused a vibrating part under :data:`MIN_NODES_BEYOND` cells, naming its own
+    parameters)."""
     grid = grid_of(s)
     n = grid.mass.size
     k = 1.0 / sample_rate

@@ -11,7 +11,7 @@ from ...checks import show_value
 from ...errors import ParameterError
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
-from .design import EDGE_LENGTH_M, MIN_NODES_BEYOND, Setup, desk_modes_for, sigma1_of
+from .design import EDGE_LENGTH_M, MIN_NODES_BEYOND, Setup, decay_rate, desk_modes_for
 from .table import RULER_TABLE, RulerParams
 from .voice import EngineVoice
 
@@ -87,9 +87,7 @@ def cantilever_modes(s: Setup, length_m: float, count: int) -> tuple[np.ndarray,
 
     f = bar_frequencies(youngs_modulus_pa=s.youngs_modulus_pa, density_kg_m3=s.density_kg_m3, length_m=length_m,
                         thickness_m=s.thickness_m, bc="clamped-free", count=count)
-    c = math.sqrt(s.youngs_modulus_pa * s.thickness_m ** 2 / (12.0 * s.density_kg_m3))
-    sigma = s.sigma0_per_s + sigma1_of(s) * (2.0 * math.pi * f) / c
-    return f, math.log(1000.0) / sigma
+    return f, math.log(1000.0) / decay_rate(s, 2.0 * math.pi * f)
 
 
 def describe_engine(s: Setup, groups: list[tuple[str, float]], sample_rate: float) -> list[Mode]:

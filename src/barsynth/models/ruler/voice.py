@@ -24,7 +24,7 @@ from ...errors import ParameterError
 from ...jitstart import compiled_for
 from ..base import Voice
 from . import kernel as K
-from .design import THETA, Design, Setup, design, desk_modes_for, interpolation_at
+from .design import THETA, Design, Setup, design, desk_modes_for, point_row
 from .desk import DESKS, desk_bank, desk_modes, reset_desk
 from .statics import NoRest, _laws, static_shape
 from .statics import _rows as _contact_rows
@@ -110,12 +110,7 @@ class EngineVoice(Voice):
         K.place_edge(self._edge, self._contacts, self._output, x_edge)
 
     def _rows(self, position_m: float) -> np.ndarray:
-        n = self._design.grid.mass.size
-        q, w0, w1 = interpolation_at(self._design.x_padded, n, position_m)
-        row = np.zeros(n + 2 * K.PAD)
-        row[q] += w0
-        row[q + 1] += w1
-        return row[K.PAD:K.PAD + n]
+        return point_row(self._design.x_padded, self._design.grid.mass.size, position_m)
 
     def _statics(self, contacts: K.Contacts, **held: Any) -> np.ndarray:
         gravity = self._design.scheme.gravity[K.PAD:-K.PAD]
