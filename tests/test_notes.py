@@ -10,7 +10,13 @@ import pytest
 
 from barsynth.errors import ParameterError
 from barsynth.models import get_model, model_names
-from barsynth.playing.notes import NOTE_MAPS, note_hz, note_map, pitch_of, velocity_fraction
+from barsynth.playing.notes import (
+    NOTE_MAPS,
+    note_hz,
+    note_map,
+    pitch_of,
+    velocity_fraction,
+)
 
 RATE = 48000
 FAST = {"fd": {"points": 40}}
