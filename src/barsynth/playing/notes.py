@@ -32,15 +32,20 @@ MAX_REFINEMENTS = 12
 
 @dataclass(frozen=True)
 class VelocityCurve:
-    """``parameter = low + (high - low) * v^gamma`` for a velocity fraction ``v`` (0 to 1)."""
+    """``parameter = low + (high - low) * v^gamma`` for a velocity fraction ``v`` (0 to 1);
+    with ``per`` that times the (new) value of the parameter ``per`` times ``factor`` (a twang's
+    tip is bent by a fraction of its overhang, in mm)."""
 
     parameter: str
     low: float
     high: float
     gamma: float = 1.0
+    per: str | None = None
+    factor: float = 1.0
 
-    def value(self, fraction: float) -> float:
-        return self.low + (self.high - self.low) * fraction ** self.gamma
+    def value(self, fraction: float, settings: Any = None) -> float:
+        base = self.low + (self.high - self.low) * fraction ** self.gamma
+        return base if self.per is None else base * getattr(settings, self.per) * self.factor
 
 
 @dataclass(frozen=True)
@@ -73,7 +78,7 @@ NOTE_MAPS: dict[str, tuple[NoteMap, ...]] = {
     "allpass": (NoteMap("length_m", "length", "fitted", {k: v for k, v in _mallets().items() if k != "bow"}),),
     "fd": (NoteMap("length_m", "length", None, _mallets()),),
     "ruler": (NoteMap("overhang_m", "length", "short cantilever",
-                      {None: VelocityCurve("tip_displacement_mm", 2.0, 25.0, 1.0)}),),
+                      {None: VelocityCurve("tip_displacement_mm", 0.02, 0.25, 1.0, per="overhang_m", factor=1000.0)}),),
     "kalimba": (NoteMap("vibrating_length_m", "length", "tine on bridge",
                         {None: VelocityCurve("pluck_displacement_mm", 0.2, 3.0, 1.0)}),),
 }
@@ -140,7 +145,7 @@ def note_settings(model: Any, params: Any, frequency_hz: float, velocity: float,
     excitation = getattr(params, "excitation", None)
     curve = mapping.velocity.get(excitation)
     if curve is not None:
-        changes[curve.parameter] = curve.value(velocity)
+        changes[curve.parameter] = curve.value(velocity, table.changed(params, changes))
     return changes
 
 
