@@ -12,7 +12,7 @@ from fractions import Fraction
 import mido
 import pytest
 
-from barsynth.errors import BarsynthError, MidiFileError, MidiMapError
+from barsynth.errors import BarsynthError, MidiFileError, MidiMapError, ParameterError
 from barsynth.midi import (ControlChange, NoteOff, NoteOn, PitchBend, ProgramChange, load_map, parse_map, read_midi,
                            sample_index)
 
@@ -301,3 +301,38 @@ def test_docstring_examples():
     import barsynth.midi.events as events
 
     assert doctest.testmod(events).attempted >= 1 and doctest.testmod(events).failed == 0
+
+
+def test_max_length_is_checked(song_path):
+    with pytest.raises(ParameterError, match=r"parameter max_length_s = nan is not a finite number"):
+        read_midi(song_path, max_length_s=float("nan"))
+    with pytest.raises(ParameterError, match=r"max_length_s = 0"):
+        read_midi(song_path, max_length_s=0)
+    assert read_midi(song_path, max_length_s=3.25).length_s == 3.25
+
+
+def test_mangled_files_never_escape_as_other_errors(song_path, tmp_path):
+    """Bytes flipped, cut out and put in at random (seeded): each file reads, or gives one MidiFileError line."""
+    import random
+
+    base, rng, outcomes = song_path.read_bytes(), random.Random(17), {"read": 0, "refused": 0}
+    for trial in range(400):
+        data = bytearray(base)
+        for _ in range(rng.randint(1, 4)):
+            at, op = rng.randrange(len(data)), rng.random()
+            if op < 0.6:
+                data[at] = rng.randrange(256)
+            elif op < 0.8:
+                del data[at:at + rng.randint(1, 8)]
+            else:
+                data[at:at] = bytes(rng.randrange(256) for _ in range(rng.randint(1, 4)))
+        path = write(tmp_path, f"mangled{trial}.mid", bytes(data))
+        try:
+            song = read_midi(path)
+        except MidiFileError as exc:
+            assert "\n" not in str(exc) and str(exc).startswith(f"MIDI file {path}: ")
+            outcomes["refused"] += 1
+        else:
+            assert len(song.notes()) == sum(isinstance(e, NoteOn) for e in song.events)
+            outcomes["read"] += 1
+    assert outcomes["read"] > 20 and outcomes["refused"] > 200, outcomes

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
-from ..checks import check_input_file, show_text
+from ..checks import check_input_file, check_number, show_text
 from ..errors import BarsynthError, MidiFileError
 
 __all__ = [
@@ -290,7 +290,11 @@ def read_midi(path: str | os.PathLike[str], *, max_length_s: float | None = None
     MidiFileError
         One line naming the file and what is wrong: missing, not a regular file, empty, not MIDI,
         truncated, corrupt, type 2, a bad time division, no notes, or too long.
+    ParameterError
+        ``max_length_s`` not a positive number.
     """
+    if max_length_s is not None:
+        max_length_s = check_number("max_length_s", max_length_s, "s", minimum=0.0, minimum_exclusive=True)
     name = os.fspath(path)
     midi = _load(name)
     if midi.type not in (0, 1):
