@@ -100,6 +100,8 @@ def test_velocities_programs_controls_and_sample_indices(song_path):
     # 1 + 1/48 s at 48 kHz is sample 49000 exactly; at 44.1 kHz 45018.75 rounds to 45019
     assert ons[2].sample_index(48000) == 49000 and ons[2].sample_index(44100) == 45019
     assert song.length_samples(48000) == 156000
+    assert song.sample_indices(44100) == [e.sample_index(44100) for e in song.events]
+    assert song.sample_indices(44100)[-1] == round((1.25 + 560 / 480) * 44100)   # 106575.0 exactly
     assert sample_index(Fraction(1, 96000), 48000) == 1 and sample_index(Fraction(1, 96001), 48000) == 0
     notes = song.notes()
     assert [(n.on.key, round(n.duration_s, 12)) for n in notes] == [(60, 0.5), (64, 0.125), (67, round(17 / 12 - 1 / 48, 12))]

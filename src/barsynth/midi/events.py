@@ -34,7 +34,6 @@ drum channel, is 9 here); programs 0 to 127 (General MIDI's program 1 is 0 here)
 from __future__ import annotations
 
 import io
-import math
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -69,10 +68,19 @@ def sample_index(time: Fraction, sample_rate: Any) -> int:
     >>> sample_index(Fraction(1, 3), 48000), sample_index(Fraction(1, 96000), 48000)
     (16000, 1)
     """
+    return _nearest(Fraction(time), _rate(sample_rate))
+
+
+def _rate(sample_rate: Any) -> Fraction:
     from ..models.rendering import check_sample_rate
 
-    rate = Fraction(check_sample_rate(sample_rate))
-    return math.floor(Fraction(time) * rate + Fraction(1, 2))
+    return Fraction(check_sample_rate(sample_rate))
+
+
+def _nearest(time: Fraction, rate: Fraction) -> int:
+    """floor(time * rate + 1/2), in integers."""
+    scale = 2 * time.denominator * rate.denominator
+    return (2 * time.numerator * rate.numerator + time.denominator * rate.denominator) // scale
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -204,6 +212,12 @@ class Song:
     def length_samples(self, sample_rate: Any) -> int:
         """The song's length in samples at ``sample_rate`` (Hz): the nearest sample to its end."""
         return sample_index(self.length, sample_rate)
+
+    def sample_indices(self, sample_rate: Any) -> list[int]:
+        """The nearest sample to each of :attr:`events` at ``sample_rate`` (Hz), in one pass
+        (what :meth:`Event.sample_index` gives one by one)."""
+        rate = _rate(sample_rate)
+        return [_nearest(event.time, rate) for event in self.events]
 
     def notes(self) -> tuple[Note, ...]:
         """Every note (its note-on with the note-off that ends it), in the order they start."""
