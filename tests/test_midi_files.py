@@ -13,8 +13,17 @@ import mido
 import pytest
 
 from barsynth.errors import BarsynthError, MidiFileError, MidiMapError, ParameterError
-from barsynth.midi import (ControlChange, NoteOff, NoteOn, PitchBend, ProgramChange, load_map, parse_map, read_midi,
-                           sample_index)
+from barsynth.midi import (
+    ControlChange,
+    NoteOff,
+    NoteOn,
+    PitchBend,
+    ProgramChange,
+    load_map,
+    parse_map,
+    read_midi,
+    sample_index,
+)
 
 
 def smf(tracks: list[bytes], *, fmt: int = 1, division: int = 480, count: int | None = None) -> bytes:
@@ -177,6 +186,7 @@ GOOD = b"\x00\x90\x3c\x64\x83\x60\x3c\x00" + END
     ("byte.mid", smf([b"\x00\x90\x3c\xe4" + END]), "is corrupt (data byte must be in range 0..127)"),
     ("status.mid", smf([b"\x00\x3c\x64" + END]), "is corrupt (running status without last_status)"),
     ("chunk.mid", smf([GOOD])[:14] + b"XXXX" + smf([GOOD])[18:], "is corrupt (no MTrk header"),
+    ("key.mid", smf([b"\x00\xff\x59\x02\x00\xab" + GOOD]), "is corrupt (Could not decode key"),   # mido's own error
     ("type2.mid", smf([GOOD, GOOD], fmt=2), "is type 2 (independent sequences); allowed: a standard MIDI file of type 0 or 1"),
     ("type7.mid", smf([GOOD], fmt=7), "is of unknown type 7"),
     ("notracks.mid", smf([]), "has no tracks"),
@@ -290,7 +300,7 @@ def test_the_docs_map_example_reads_as_it_says():
     from pathlib import Path
 
     doc = (Path(__file__).resolve().parents[1] / "docs" / "midi-notes.md").read_text(encoding="utf-8")
-    (text,) = re.findall(r"```toml\n(.*?)```", doc, flags=re.S)
+    (text,) = re.findall(r"```toml\n(.*?)```", doc, flags=re.DOTALL)
     table = parse_map(text, model="twang", name="song-map.toml")
     assert table.assignment(1).preset == "marimba" and table.assignment(3) is None
     assert table.assignment(0, 11).preset == "vibraphone" and table.assignment(9).preset == "glockenspiel-bar"
@@ -300,7 +310,7 @@ def test_the_docs_map_example_reads_as_it_says():
 def test_docstring_examples():
     import doctest
 
-    import barsynth.midi.events as events
+    from barsynth.midi import events
 
     assert doctest.testmod(events).attempted >= 1 and doctest.testmod(events).failed == 0
 

@@ -4,8 +4,7 @@ Nothing here synthesises: a player (``Instrument``) and ``barsynth midi`` consum
 See docs/midi-notes.md.
 """
 
-from .events import (ControlChange, Event, Note, NoteOff, NoteOn, PitchBend, ProgramChange, Song, read_midi,
-                     sample_index)
+from .events import ControlChange, Event, Note, NoteOff, NoteOn, PitchBend, ProgramChange, Song, read_midi, sample_index
 from .mapping import Assignment, ChannelMap, load_map, parse_map
 
 __all__ = ["Assignment", "ChannelMap", "ControlChange", "Event", "Note", "NoteOff", "NoteOn", "PitchBend",

@@ -270,7 +270,7 @@ def _load(name: str) -> Any:
         return mido.MidiFile(file=io.BytesIO(data))
     except EOFError:
         raise _fail(name, "ends in the middle of a chunk or event (truncated); " + _ALLOWED) from None
-    except Exception as exc:  # mido raises OSError, ValueError, KeyError, IndexError ... on bad bytes
+    except Exception as exc:  # noqa: BLE001 - mido raises OSError, ValueError, IndexError, its KeySignatureError...
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise _fail(name, f"is corrupt ({reason}); " + _ALLOWED) from None
 
