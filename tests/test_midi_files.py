@@ -348,3 +348,12 @@ def test_mangled_files_never_escape_as_other_errors(song_path, tmp_path):
             assert len(song.notes()) == sum(isinstance(e, NoteOn) for e in song.events)
             outcomes["read"] += 1
     assert outcomes["read"] > 20 and outcomes["refused"] > 200, outcomes
+
+
+def test_the_mapping_modules_example_map_reads():
+    from barsynth.midi import mapping
+
+    text = mapping.__doc__.split("::\n", 1)[1].split("\nA note's", 1)[0]
+    table = parse_map(text, model="banded")
+    assert table.assignment(1).preset == "marimba" and table.assignment(3) is None
+    assert table.assignment(0, 11).preset == "vibraphone" and table.assignment(9) is None

@@ -6,7 +6,7 @@ A map holds ``[[channel]]`` and ``[[program]]`` entries::
     channel = 2               # 1 to 16, as musicians count (10 is General MIDI's drums)
     model = "banded"
     preset = "marimba"        # optional: one of the model's presets
-    parameters = { t60_s = 2.5 }   # optional: overrides, checked against the model's table
+    parameters = { mallet_hardness = 0.4 }   # optional: overrides, checked against the model's table
 
     [[channel]]
     channel = 4
@@ -122,7 +122,7 @@ def _whole(where: str, key: str, value: Any) -> int:
     return value
 
 
-def parse_map(text: str, *, model: str, preset: str | None = None, name: str = "map") -> ChannelMap:
+def parse_map(text: str, *, model: str, preset: str | None = None, name: str = "(text)") -> ChannelMap:
     """A :class:`ChannelMap` from TOML ``text`` (``name`` names it in messages), every other channel
     played by ``model`` with ``preset``."""
     default = _assignment("default", model, preset, None)
