@@ -25,7 +25,7 @@ def _names(requirements: list[str]) -> set[str]:
 
 def test_the_base_install_has_no_web_stack_and_no_matplotlib():
     base = _names(_project()["dependencies"])
-    assert base == {"numpy", "scipy", "numba", "soundfile", "click"}
+    assert base == {"numpy", "scipy", "numba", "soundfile", "click", "mido"}  # mido: reading MIDI files (small, pure Python)
     assert not base & WEB_STACK
     assert "matplotlib" not in base
 
