@@ -1,8 +1,8 @@
 """A real JACK server for tests: Debian's ``jackd2`` with its dummy back end, run as an
 ordinary process (no real-time scheduling, no sound card), plus a recording client.
 
-Use it from a test module with ``from jack_server import jack_server  # noqa: F401`` and a
-``jack_server`` argument. The fixture (module scope) starts ``jackd -n NAME --no-realtime
+Use it from a test module with ``from jack_server import jack_daemon, jack_server  # noqa: F401``
+and a ``jack_server`` argument. The fixture ``jack_daemon`` (module scope) starts ``jackd -n NAME --no-realtime
 -d dummy -r 48000 -p 256`` under a unique NAME, points ``JACK_DEFAULT_SERVER`` at it (for
 PortAudio and python-rtmidi, which take the server from the environment), re-initialises
 PortAudio so that ``sounddevice`` lists the JACK host API, and on teardown closes its
@@ -224,19 +224,31 @@ class JackServer:
         self._clients.append(made)
         return made
 
+    def _check_no_python_callbacks(self) -> None:
+        if any(isinstance(made, Recorder) for made in self._clients):
+            pytest.fail("make python-rtmidi ports before any JACK client with a Python process callback "
+                        "(Recorder, sounddevice stream): rtmidi holds the GIL while it waits for the server, "
+                        "the server waits for the Python callback, and jackd stalls")
+
     def midi_out(self, name: str, port: str = "out"):
-        """A python-rtmidi ``MidiOut`` on JACK with a virtual port ``name:port`` (closed at teardown)."""
+        """A python-rtmidi ``MidiOut`` on JACK with a virtual port ``name:port`` (closed at teardown).
+
+        Make it before any recorder or sounddevice stream (see ``docs/jack-notes.md``)."""
         import rtmidi
 
+        self._check_no_python_callbacks()
         made = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name=name)
         made.open_virtual_port(port)
         self._clients.append(made)
         return made
 
     def midi_in(self, name: str, port: str = "in"):
-        """A python-rtmidi ``MidiIn`` on JACK with a virtual port ``name:port`` (closed at teardown)."""
+        """A python-rtmidi ``MidiIn`` on JACK with a virtual port ``name:port`` (closed at teardown).
+
+        Make it before any recorder or sounddevice stream (see ``docs/jack-notes.md``)."""
         import rtmidi
 
+        self._check_no_python_callbacks()
         made = rtmidi.MidiIn(rtmidi.API_UNIX_JACK, name=name)
         made.open_virtual_port(port)
         self._clients.append(made)
@@ -369,13 +381,14 @@ def stop_jack_server(server: JackServer) -> None:
 
 
 @pytest.fixture(scope="module")
-def jack_server(tmp_path_factory):
+def jack_daemon(tmp_path_factory):
     """A running JACK server (dummy back end, 48 kHz, 256-frame blocks) for one test module.
 
     Yields a :class:`JackServer`. ``JACK_DEFAULT_SERVER`` names it and ``JACK_NO_START_SERVER``
     is set while the module runs; an imported ``sounddevice`` is re-initialised so that it
     lists the JACK host API (import ``sounddevice`` before asking for this fixture, or call
-    ``sounddevice._terminate(); sounddevice._initialize()`` yourself).
+    ``sounddevice._terminate(); sounddevice._initialize()`` yourself). Tests use
+    :func:`jack_server`, which also closes each test's clients.
     """
     log_path = tmp_path_factory.mktemp("jackd") / "jackd.log"
     saved = {key: os.environ.get(key) for key in ("JACK_DEFAULT_SERVER", "JACK_NO_START_SERVER")}
@@ -398,5 +411,16 @@ def jack_server(tmp_path_factory):
             sys.modules["sounddevice"]._initialize()
 
 
-__all__ = ["BLOCK_FRAMES", "SAMPLE_RATE", "JackServer", "Recorder", "jack_server", "start_jack_server",
+@pytest.fixture
+def jack_server(jack_daemon):
+    """The module's :class:`JackServer`; the clients a test makes through it are closed after the test,
+    and the test fails if jackd stopped during it."""
+    yield jack_daemon
+    jack_daemon.close_clients()
+    if jack_daemon.process.poll() is not None:
+        pytest.fail(f"jackd {jack_daemon.name} exited with status {jack_daemon.process.returncode}; "
+                    f"log: {jack_daemon.log_path}")
+
+
+__all__ = ["BLOCK_FRAMES", "SAMPLE_RATE", "JackServer", "Recorder", "jack_daemon", "jack_server", "start_jack_server",
            "stop_jack_server"]
