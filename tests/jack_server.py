@@ -320,8 +320,24 @@ def _server_files(name: str) -> list[Path]:
     return [path for path in SHM_DIR.glob("jack*") if f"_{name}_" in path.name]
 
 
-def start_jack_server(log_path: Path, sample_rate: int = SAMPLE_RATE, block_frames: int = BLOCK_FRAMES) -> JackServer:
-    """Start jackd with the dummy back end under a unique name and wait until it accepts a client."""
+def start_jack_server(log_path: Path, sample_rate: int = SAMPLE_RATE, block_frames: int = BLOCK_FRAMES,
+                      sync: bool = True) -> JackServer:
+    """Start jackd with the dummy back end under a unique name and wait until it accepts a client.
+
+    Parameters
+    ----------
+    log_path : Path
+        Where jackd's output goes.
+    sample_rate : int
+        Hz.
+    block_frames : int
+        Frames per period.
+    sync : bool
+        Synchronous mode (``jackd --sync``): each cycle waits for every client (up to the
+        10 s client timeout), so a client that is late on a loaded machine delays the dummy
+        clock instead of losing blocks, and recordings are sample-exact. Asynchronous mode
+        (False) is how a real sound card behaves: a late client loses its block.
+    """
     jackd = shutil.which("jackd")
     if jackd is None:
         pytest.fail("jackd not found: the live-audio tests need Debian's jackd2 "
@@ -331,7 +347,7 @@ def start_jack_server(log_path: Path, sample_rate: int = SAMPLE_RATE, block_fram
     name = f"barsynth-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     shm_before = {path.name for path in SHM_DIR.glob("jack-*")} if SHM_DIR.is_dir() else set()
     log = open(log_path, "wb")  # noqa: SIM115 (closed by stop_jack_server)
-    command = [jackd, "-n", name, "--no-realtime", "-t", "10000", "-d", "dummy",
+    command = [jackd, "-n", name, "--no-realtime", *(["--sync"] if sync else []), "-t", "10000", "-d", "dummy",
                "-r", str(sample_rate), "-p", str(block_frames)]
     env = {**os.environ, "JACK_NO_START_SERVER": "1"}
     process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, env=env,
@@ -382,7 +398,7 @@ def stop_jack_server(server: JackServer) -> None:
 
 @pytest.fixture(scope="module")
 def jack_daemon(tmp_path_factory):
-    """A running JACK server (dummy back end, 48 kHz, 256-frame blocks) for one test module.
+    """A running JACK server (dummy back end, 48 kHz, 256-frame blocks, synchronous mode) for one test module.
 
     Yields a :class:`JackServer`. ``JACK_DEFAULT_SERVER`` names it and ``JACK_NO_START_SERVER``
     is set while the module runs; an imported ``sounddevice`` is re-initialised so that it
