@@ -1,8 +1,7 @@
 """A real JACK server for tests: Debian's ``jackd2`` with its dummy back end, run as an
 ordinary process (no real-time scheduling, no sound card), plus a recording client.
 
-Use it from a test module with ``from jack_server import jack_daemon, jack_server  # noqa: F401``
-and a ``jack_server`` argument. The fixture ``jack_daemon`` (module scope) starts ``jackd -n NAME --no-realtime
+conftest.py imports the fixtures, so a test just takes a ``jack_server`` argument. The fixture ``jack_daemon`` (module scope) starts ``jackd -n NAME --no-realtime
 -d dummy -r 48000 -p 256`` under a unique NAME, points ``JACK_DEFAULT_SERVER`` at it (for
 PortAudio and python-rtmidi, which take the server from the environment), re-initialises
 PortAudio so that ``sounddevice`` lists the JACK host API, and on teardown closes its

@@ -1,17 +1,19 @@
 """The live-audio test rig works: a real JACK server (dummy back end), sound through
 sounddevice's JACK device into a recording client, and notes over JACK MIDI with
 python-rtmidi. These tests measure the rig, not barsynth; barsynth's ``play`` tests build on it.
+The ``jack_server`` fixture comes from tests/jack_server.py through conftest.py.
 """
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 
 import numpy as np
 import pytest
 import sounddevice  # imported before the fixture starts jackd: the fixture re-initialises PortAudio
-
-from jack_server import BLOCK_FRAMES, SAMPLE_RATE, jack_daemon, jack_server  # noqa: F401 (the fixtures)
+from jack_server import BLOCK_FRAMES, SAMPLE_RATE
 
 FREQUENCY_HZ = 440.0
 AMPLITUDE = 0.5
@@ -200,9 +202,6 @@ with sounddevice.OutputStream(device=jack["default_output_device"], samplerate=r
 def test_a_subprocess_plays_into_the_recorder(jack_server, tmp_path):
     """What ``barsynth play`` tests will do: another process (given ``jack_server.env``) plays through
     its own PortAudio JACK client, and the recorder hears it."""
-    import subprocess
-    import sys
-
     frequency_hz, seconds = 660.0, 0.5
     script = tmp_path / "player.py"
     script.write_text(PLAYER_SCRIPT)
