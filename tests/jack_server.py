@@ -18,6 +18,7 @@ import contextlib
 import os
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -319,6 +320,16 @@ def _server_files(name: str) -> list[Path]:
     return [path for path in SHM_DIR.glob("jack*") if f"_{name}_" in path.name]
 
 
+def _shared_file(path: Path) -> bool:
+    """jackd2's files that all servers share: the shared-memory registry and the metadata database."""
+    return path.name == "jack-shm-registry" or path.name.startswith("jack_db-")
+
+
+def _other_servers_running() -> bool:
+    """Whether any JACK server's socket is left in /dev/shm."""
+    return any(stat.S_ISSOCK(path.lstat().st_mode) for path in SHM_DIR.glob("jack_*") if path.exists())
+
+
 def start_jack_server(log_path: Path, sample_rate: int = SAMPLE_RATE, block_frames: int = BLOCK_FRAMES,
                       sync: bool = True) -> JackServer:
     """Start jackd with the dummy back end under a unique name and wait until it accepts a client.
@@ -344,7 +355,7 @@ def start_jack_server(log_path: Path, sample_rate: int = SAMPLE_RATE, block_fram
     jack = _jack_module()
     _quiet_jack(jack)
     name = f"barsynth-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-    shm_before = {path.name for path in SHM_DIR.glob("jack-*")} if SHM_DIR.is_dir() else set()
+    shm_before = {path.name for path in SHM_DIR.glob("jack*")} if SHM_DIR.is_dir() else set()
     log = open(log_path, "wb")  # noqa: SIM115 (closed by stop_jack_server)
     command = [jackd, "-n", name, "--no-realtime", *(["--sync"] if sync else []), "-t", "10000", "-d", "dummy",
                "-r", str(sample_rate), "-p", str(block_frames)]
@@ -393,6 +404,12 @@ def stop_jack_server(server: JackServer) -> None:
     for path in leftovers:
         with contextlib.suppress(OSError):
             path.unlink()
+    if not _other_servers_running():  # the shared files, if this server made them and no other server uses them
+        for path in SHM_DIR.glob("jack*"):
+            if not _shared_file(path) or path.name in server._shm_before:
+                continue
+            with contextlib.suppress(OSError):
+                shutil.rmtree(path) if path.is_dir() else path.unlink()
 
 
 @pytest.fixture(scope="module")
