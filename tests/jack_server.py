@@ -330,6 +330,18 @@ def _other_servers_running() -> bool:
     return any(stat.S_ISSOCK(path.lstat().st_mode) for path in SHM_DIR.glob("jack_*") if path.exists())
 
 
+def remove_shared_files() -> None:
+    """Remove jackd2's shared files (the shared-memory registry, the metadata directory) when no
+    server runs. libjack makes the metadata directory whenever a client opens, even one that finds
+    no server: importing sounddevice (PortAudio probing JACK) is enough."""
+    if _other_servers_running():
+        return
+    for path in SHM_DIR.glob("jack*"):
+        if _shared_file(path):
+            with contextlib.suppress(OSError):
+                shutil.rmtree(path) if path.is_dir() else path.unlink()
+
+
 def start_jack_server(log_path: Path, sample_rate: int = SAMPLE_RATE, block_frames: int = BLOCK_FRAMES,
                       sync: bool = True) -> JackServer:
     """Start jackd with the dummy back end under a unique name and wait until it accepts a client.
@@ -404,12 +416,7 @@ def stop_jack_server(server: JackServer) -> None:
     for path in leftovers:
         with contextlib.suppress(OSError):
             path.unlink()
-    if not _other_servers_running():  # the shared files, if this server made them and no other server uses them
-        for path in SHM_DIR.glob("jack*"):
-            if not _shared_file(path) or path.name in server._shm_before:
-                continue
-            with contextlib.suppress(OSError):
-                shutil.rmtree(path) if path.is_dir() else path.unlink()
+    remove_shared_files()
 
 
 @pytest.fixture(scope="module")
@@ -441,6 +448,7 @@ def jack_daemon(tmp_path_factory):
                 os.environ[key] = value
         if "sounddevice" in sys.modules:
             sys.modules["sounddevice"]._initialize()
+        remove_shared_files()
 
 
 @pytest.fixture
