@@ -906,6 +906,46 @@ def midi(song_path, model_name, preset, map_path, sample_rate, voices, subtype, 
     click.echo(f"wrote {output} ({samples.size / rate:.2f} s at {rate:g} Hz, {len(song.notes())} notes)")
 
 
+@main.command(cls=_ModelCommand)
+@click.argument("model_name", metavar="MODEL")
+@_preset_option
+@_set_option
+@click.option("--midi-in", "midi_name", metavar="NAME", help="Open a MIDI input port NAME:in to play from.")
+@click.option("--midi-api", type=_Choice(("default", "jack", "alsa")), default="default", show_default=True,
+              help="Which MIDI system the port is made in.")
+@click.option("--device", metavar="D", help="Audio output device (sounddevice's index or name; default: the system's).")
+@_rate_option
+@click.option("--voices", default=16, show_default=True, type=_Whole(1, 256), metavar="N", help="Voices.")
+@click.option("--block", default=256, show_default=True, type=_Whole(16, 8192), metavar="N",
+              help="Samples per audio block.")
+@click.option("--seconds", type=float, metavar="S", help="Stop after S seconds (default: Ctrl-C stops).")
+def play(model_name, preset, assignments, midi_name, midi_api, device, sample_rate, voices, block, seconds):
+    """Play a model through the computer's audio (PortAudio, JACK among its hosts) from MIDI.
+
+    \b
+    Examples:
+      barsynth play banded --preset marimba --midi-in barsynth
+      barsynth play ruler --midi-in barsynth --midi-api jack --device jack
+    """
+    from .playing.instrument import Instrument
+    from .playing.player import open_midi_in
+    from .playing.player import play as run
+
+    model = _model(model_name)
+    resolved = _resolve(model, preset, assignments)
+    rate = _sample_rate(sample_rate)
+    instrument = Instrument(model, voices, parameters=model.table.as_dict(resolved), sample_rate=rate)
+    midi_in = open_midi_in(midi_name, midi_api) if midi_name else None  # before the audio stream
+    chosen = int(device) if device is not None and device.isdigit() else device
+    try:
+        counts = run(instrument, sample_rate=rate, device=chosen, block=block, midi_in=midi_in, seconds=seconds,
+                     echo=lambda line: click.echo(line))
+    except KeyboardInterrupt:
+        counts = None
+    if counts is not None:
+        click.echo(f"played {counts['blocks']} blocks, {counts['underruns']} samples missing")
+
+
 @main.command("tune-undercut")
 @_material_options
 @click.option("--thickness", "thickness_m", type=_POSITIVE_M, required=True, metavar="M",
