@@ -1,4 +1,5 @@
 """Shared fixtures: a small listening test on disk (real WAV files through soundfile);
+a real JACK server for the live-audio tests (``jack_server``, from tests/jack_server.py);
 Hypothesis's settings for the whole suite.
 
 Hypothesis runs derandomized, with no example database, so every run of the suite tries
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 import soundfile
 from hypothesis import HealthCheck, settings
+from jack_server import jack_daemon, jack_server  # noqa: F401 (a JACK server for the live-audio tests)
 
 settings.register_profile("repeatable", derandomize=True, database=None, deadline=None, print_blob=True,
                           suppress_health_check=[HealthCheck.too_slow])

@@ -27,7 +27,6 @@ from .checks import show_text
 from .errors import BarsynthError, ParameterError
 from .extras import require
 
-
 INTERRUPTED_STATUS = 130  # 128 + SIGINT, as shells report a process that Ctrl-C stopped
 BROKEN_PIPE_STATUS = 141  # 128 + SIGPIPE, as shells report a process whose reader went away
 
@@ -850,6 +849,103 @@ def render(model_name, preset, assignments, duration, sample_rate, seed, raw, su
     click.echo(f"wrote {output} ({length} at {rate:g} Hz)")
 
 
+@main.command()
+@click.argument("song_path", metavar="SONG.mid", type=click.Path(path_type=Path))
+@click.option("--model", "model_name", default="banded", show_default=True, metavar="MODEL",
+              help="What plays every channel the map does not name.")
+@_preset_option
+@click.option("--map", "map_path", type=click.Path(path_type=Path), metavar="MAP.toml",
+              help="Channels and programs to models and presets (docs/midi-notes.md).")
+@_rate_option
+@click.option("--voices", default=16, show_default=True, type=_Whole(1, 256), metavar="N",
+              help="Voices per instrument (notes beyond steal the oldest released, then the quietest).")
+@click.option("--subtype", type=_Choice(SUBTYPES), default="PCM_24", show_default=True,
+              help="Sample format of the file.")
+@click.option("-o", "--output", "output", required=True, metavar="FILE", type=click.Path(path_type=Path),
+              help="Audio file to write (.wav, .flac, .ogg).")
+def midi(song_path, model_name, preset, map_path, sample_rate, voices, subtype, output):
+    """Render a MIDI file: each channel on the model its map names, tails to silence.
+
+    A long song shows its progress on a terminal; Ctrl-C stops it and writes nothing.
+
+    \b
+    Examples:
+      barsynth midi song.mid --preset marimba -o song.wav
+      barsynth midi song.mid --map band.toml --sample-rate 44100 -o song.flac
+    """
+    from .audio_io import output_format, output_subtype, write_audio
+    from .midi import load_map, read_midi
+    from .playing.song import render_song
+
+    rate = _sample_rate(sample_rate)
+    _check_writable_dir(output, "output")
+    fmt = output_format(output)
+    channel_map = load_map(map_path, model=model_name, preset=preset)
+    song = read_midi(song_path, max_length_s=3600.0)
+    file_subtype = output_subtype(fmt, subtype, rate, output.suffix)
+    progress = _Progress()
+    ctrl_c = _CtrlCBetweenBlocks()
+
+    def watch(done_s: float, total_s: float | None) -> None:
+        progress(done_s, total_s, None)
+        ctrl_c.check()
+
+    try:
+        with ctrl_c:
+            samples = render_song(song, channel_map, sample_rate=rate, voices=voices, watch=watch)
+    except KeyboardInterrupt:
+        raise _Interrupted("interrupted; nothing written") from None
+    finally:
+        progress.close()
+    import numpy as np
+
+    peak = float(np.max(np.abs(samples))) if samples.size else 0.0
+    if peak > 0.0:
+        samples = samples * (10 ** (-1.0 / 20.0) / peak)  # -1 dBFS, as render does
+    _write_all([(output, lambda tmp: write_audio(tmp, samples, rate, fmt=fmt, subtype=file_subtype))])
+    click.echo(f"wrote {output} ({samples.size / rate:.2f} s at {rate:g} Hz, {len(song.notes())} notes)")
+
+
+@main.command(cls=_ModelCommand)
+@click.argument("model_name", metavar="MODEL")
+@_preset_option
+@_set_option
+@click.option("--midi-in", "midi_name", metavar="NAME", help="Open a MIDI input port NAME:in to play from.")
+@click.option("--midi-api", type=_Choice(("default", "jack", "alsa")), default="default", show_default=True,
+              help="Which MIDI system the port is made in.")
+@click.option("--device", metavar="D", help="Audio output device (sounddevice's index or name; default: the system's).")
+@_rate_option
+@click.option("--voices", default=16, show_default=True, type=_Whole(1, 256), metavar="N", help="Voices.")
+@click.option("--block", default=256, show_default=True, type=_Whole(16, 8192), metavar="N",
+              help="Samples per audio block.")
+@click.option("--seconds", type=float, metavar="S", help="Stop after S seconds (default: Ctrl-C stops).")
+def play(model_name, preset, assignments, midi_name, midi_api, device, sample_rate, voices, block, seconds):
+    """Play a model through the computer's audio (PortAudio, JACK among its hosts) from MIDI.
+
+    \b
+    Examples:
+      barsynth play banded --preset marimba --midi-in barsynth
+      barsynth play ruler --midi-in barsynth --midi-api jack --device jack
+    """
+    from .playing.instrument import Instrument
+    from .playing.player import open_midi_in
+    from .playing.player import play as run
+
+    model = _model(model_name)
+    resolved = _resolve(model, preset, assignments)
+    rate = _sample_rate(sample_rate)
+    instrument = Instrument(model, voices, parameters=model.table.as_dict(resolved), sample_rate=rate)
+    midi_in = open_midi_in(midi_name, midi_api) if midi_name else None  # before the audio stream
+    chosen = int(device) if device is not None and device.isdigit() else device
+    try:
+        counts = run(instrument, sample_rate=rate, device=chosen, block=block, midi_in=midi_in, seconds=seconds,
+                     echo=lambda line: click.echo(line))
+    except KeyboardInterrupt:
+        counts = None
+    if counts is not None:
+        click.echo(f"played {counts['blocks']} blocks, {counts['underruns']} samples missing")
+
+
 @main.command("tune-undercut")
 @_material_options
 @click.option("--thickness", "thickness_m", type=_POSITIVE_M, required=True, metavar="M",
@@ -1324,7 +1420,13 @@ def listen_serve(config, results, host, port):
 @click.option("--holm", "holm_correction", is_flag=True, help="Holm-correct the pairwise p-values.")
 def listen_report(results, csv_dir, plot_path, holm_correction):
     """Per-clip statistics, pairwise rank-sum marks and A/B identification rates."""
-    from .listening.report import CSV_NAMES, box_plot, csv_tables, report_text, write_table
+    from .listening.report import (
+        CSV_NAMES,
+        box_plot,
+        csv_tables,
+        report_text,
+        write_table,
+    )
     from .listening.store import open_existing
 
     if plot_path is not None:

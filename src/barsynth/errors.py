@@ -31,5 +31,13 @@ class AudioFormatError(AudioFileError):
     """An audio file's bytes are not a sound libsndfile reads (not WAV, FLAC or OGG, or broken)."""
 
 
+class MidiFileError(BarsynthError, ValueError):
+    """A MIDI file is missing, unreadable, malformed or of a kind barsynth does not play."""
+
+
+class MidiMapError(BarsynthError, ValueError):
+    """A channel/program map (TOML) is unreadable or names an unknown model, preset or parameter."""
+
+
 class SamplesError(BarsynthError, ValueError):
     """Settings for which a model gives non-finite or exploding samples (never played or written)."""

@@ -6,12 +6,13 @@ soundfile, click). Two extras add the rest:
 * ``plot`` (matplotlib): the PNG pictures of ``render --plot``, ``analyze --plot``,
   ``bow-map`` and ``listen report --plot``;
 * ``studio`` (fastapi, uvicorn, websockets): the web stack of ``barsynth studio`` and of
-  the listening-test server ``barsynth listen serve``.
+  the listening-test server ``barsynth listen serve``;
+* ``notebook`` (IPython): hearing sounds in Jupyter (:mod:`barsynth.notebook`).
 
 ``pip install 'barsynth[plot,studio]'`` (or ``'barsynth[all]'``) installs both.
 
 >>> sorted(EXTRAS)
-['plot', 'studio']
+['notebook', 'plot', 'studio']
 """
 
 from __future__ import annotations
@@ -26,8 +27,9 @@ __all__ = ["EXTRAS", "MissingExtraError", "missing_modules", "require"]
 EXTRAS: dict[str, tuple[str, ...]] = {
     "plot": ("matplotlib",),
     "studio": ("fastapi", "uvicorn", "websockets"),
+    "notebook": ("IPython",),
 }
-_WHAT = {"plot": "matplotlib", "studio": "the web stack (fastapi, uvicorn, websockets)"}
+_WHAT = {"plot": "matplotlib", "studio": "the web stack (fastapi, uvicorn, websockets)", "notebook": "IPython"}
 
 
 class MissingExtraError(BarsynthError):

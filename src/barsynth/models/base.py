@@ -127,6 +127,26 @@ class Voice:
     def release(self) -> None:
         """Let go (a bow stroke slows to rest); a voice that cannot release ignores it."""
 
+    def note_on(self, pitch: Any = None, velocity: Any = 100, *, frequency_hz: Any = None) -> None:
+        """Play a note: MIDI note ``pitch`` (69 = A4 = 440 Hz; fractions allowed) or
+        ``frequency_hz``, at ``velocity`` (0-127, or a fraction 0-1). The model's note map
+        (:mod:`barsynth.playing.notes`) sets the parameters the pitch moves and the velocity
+        drives, then the voice is triggered; a note the model cannot reach is refused in one
+        line and changes nothing."""
+        from ..playing.notes import note_hz, note_settings, velocity_fraction
+
+        hz, fraction = note_hz(pitch, frequency_hz=frequency_hz), velocity_fraction(velocity)
+        changes = note_settings(self.model, self._params, hz, fraction, sample_rate=self.sample_rate)
+        self.set_parameters(**changes)
+        self.trigger()
+
+    def note_off(self, velocity: Any = 0) -> None:
+        """Let the note go (:meth:`release`: a bow lifts; a struck or plucked voice rings on)."""
+        from ..playing.notes import velocity_fraction
+
+        velocity_fraction(velocity)
+        self.release()
+
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) now whatever a change while sounding may need
         later, so a live player never waits for a compile mid-stream; the samples are the same

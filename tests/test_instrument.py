@@ -1,0 +1,76 @@
+"""The polyphonic instrument (barsynth.playing.Instrument): several notes at once, each event at
+its sample whatever the blocks, voices stolen without a click, the sustain pedal."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from barsynth.playing.instrument import Instrument
+
+RATE = 48000
+
+
+def song(instrument, events, total, block):
+    """Play timed events ((sample, kind, args)) in blocks of ``block``."""
+    out, now = [], 0
+    pending = sorted(events)
+    while now < total:
+        n = min(block, total - now)
+        for at, kind, args in [e for e in pending if now <= e[0] < now + n]:
+            getattr(instrument, kind)(*args[0], **{**args[1], "at": at - now})
+        pending = [e for e in pending if e[0] >= now + n]
+        out.append(instrument.process(n))
+        now += n
+    return np.concatenate(out)
+
+
+EVENTS = [(0, "note_on", ((60, 100), {})), (700, "note_on", ((64, 90), {})), (1500, "note_on", ((67, 80), {})),
+          (3000, "note_off", ((60,), {})), (4000, "control", ((64, 127), {})), (4500, "note_off", ((64,), {})),
+          (6000, "control", ((64, 0), {})), (7000, "note_on", ((72, 120), {}))]
+
+
+@pytest.mark.parametrize("block", [1, 37, 256, 1000, 10000])
+def test_blocks_of_any_size_give_the_same_samples(block):
+    whole = song(Instrument("banded", voices=4, preset="marimba"), EVENTS, 10000, 10000)
+    assert np.max(np.abs(whole)) > 0
+    assert np.array_equal(song(Instrument("banded", voices=4, preset="marimba"), EVENTS, 10000, block), whole)
+
+
+def test_a_chord_sounds_every_note():
+    piano = Instrument("banded", voices=4, preset="marimba")
+    for note in (60, 64, 67):
+        piano.note_on(note, 100)
+    x = piano.process(RATE)
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size)))
+    f = np.fft.rfftfreq(x.size, 1 / RATE)
+    for hz in (261.63, 329.63, 392.0):
+        near = (f > hz - 3) & (f < hz + 3)
+        far = (f > hz + 20) & (f < hz + 40)
+        assert np.max(spectrum[near]) > 30 * np.max(spectrum[far])
+
+
+def test_a_stolen_voice_fades_without_a_click():
+    two = Instrument("banded", voices=2, preset="marimba")
+    two.note_on(60, 127)
+    two.note_on(64, 127, at=10)
+    x1 = two.process(4800)
+    two.note_on(67, 127)  # a third note: the oldest is stolen
+    x2 = two.process(4800)
+    x = np.concatenate([x1, x2])
+    steps = np.abs(np.diff(x))
+    assert np.max(steps[4790:4900]) < 3.0 * np.max(steps[3800:4790])
+
+
+def test_sustain_holds_note_offs_until_the_pedal_comes_up():
+    held = Instrument("banded", voices=2, parameters={"excitation": "bow", "bow_duration_s": 60.0})
+    free = Instrument("banded", voices=2, parameters={"excitation": "bow", "bow_duration_s": 60.0})
+    for inst, pedal in ((held, True), (free, False)):
+        inst.note_on(60, 100)
+        inst.process(4800)
+        if pedal:
+            inst.control(64, 127)
+        inst.note_off(60)
+    late_held = held.process(48000)[-4800:]
+    late_free = free.process(48000)[-4800:]
+    assert np.sqrt(np.mean(late_held ** 2)) > 3 * np.sqrt(np.mean(late_free ** 2))

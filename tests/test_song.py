@@ -1,0 +1,84 @@
+"""A MIDI song rendered (barsynth.playing.song): each note at its time and pitch, on the model
+its channel is mapped to."""
+
+from __future__ import annotations
+
+import mido
+import numpy as np
+
+from barsynth.midi import load_map, read_midi
+from barsynth.playing.song import render_song
+
+RATE = 48000
+
+
+def write_song(path, notes, *, bpm=120, program_channel=None):
+    """``notes``: (channel, key, start_beats, length_beats) on one track at ``bpm``."""
+    midi = mido.MidiFile(ticks_per_beat=480)
+    track = mido.MidiTrack()
+    midi.tracks.append(track)
+    track.append(mido.MetaMessage("set_tempo", tempo=mido.bpm2tempo(bpm), time=0))
+    timeline = []
+    for channel, key, start, length in notes:
+        timeline.append((int(start * 480), 1, mido.Message("note_on", channel=channel, note=key, velocity=100)))
+        timeline.append((int((start + length) * 480), 0, mido.Message("note_off", channel=channel, note=key)))
+    last = 0
+    for tick, _, message in sorted(timeline, key=lambda e: (e[0], e[1])):
+        track.append(message.copy(time=tick - last))
+        last = tick
+    midi.save(path)
+
+
+def peak_hz(x, low, high):
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size), 4 * x.size))
+    f = np.fft.rfftfreq(4 * x.size, 1 / RATE)
+    band = (f > low) & (f < high)
+    return f[band][np.argmax(spectrum[band])]
+
+
+def test_each_note_sounds_at_its_time_and_pitch(tmp_path):
+    path = tmp_path / "song.mid"
+    write_song(path, [(0, 69, 0, 1), (0, 76, 2, 1)])  # A4 at 0 s, E5 at 1 s (120 bpm)
+    x = render_song(read_midi(path), load_map(None, model="banded", preset="marimba"), sample_rate=RATE)
+    assert x.size > RATE
+    first, second = x[:RATE // 2], x[RATE + 2400:RATE + 2400 + RATE // 2]
+    assert abs(peak_hz(first, 400, 480) - 440.0) < 1.0
+    assert abs(peak_hz(second, 620, 700) - 659.26) < 1.5
+    onset = np.flatnonzero(np.abs(x[RATE - 2400:]) > 0.5 * np.max(np.abs(x[RATE:RATE + 4800])))[0] + RATE - 2400
+    assert abs(onset - RATE) < 200  # the second note starts at 1.000 s
+
+
+def test_channels_play_the_models_the_map_names(tmp_path):
+    path = tmp_path / "two.mid"
+    write_song(path, [(0, 69, 0, 2), (1, 45, 0, 2)])
+    mapping = tmp_path / "map.toml"
+    mapping.write_text('[[channel]]\nchannel = 2\nmodel = "kalimba"\n')
+    song = read_midi(path)
+    both = render_song(song, load_map(mapping, model="banded", preset="marimba"), sample_rate=RATE)
+    alone = render_song(song, load_map(None, model="banded", preset="marimba"), sample_rate=RATE)
+    assert not np.allclose(both[:RATE], alone[:RATE])
+    assert abs(peak_hz(both[:RATE], 100, 120) - 110.0) < 1.0  # A2 on the kalimba
+
+
+def test_the_cli_renders_a_song_and_refuses_a_corrupt_file_in_one_line(tmp_path):
+    import soundfile
+    from click.testing import CliRunner
+
+    from barsynth.cli import main
+
+    path = tmp_path / "song.mid"
+    write_song(path, [(0, 60, 0, 1), (0, 64, 1, 1)])
+    out = tmp_path / "song.wav"
+    result = CliRunner().invoke(main, ["midi", str(path), "--preset", "marimba", "-o", str(out)],
+                                catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    info = soundfile.info(str(out))
+    assert info.samplerate == RATE and info.frames > RATE
+    bad = tmp_path / "bad.mid"
+    bad.write_bytes(b"MThd\x00\x00\x00\x06\x00\x01\x00\x02")  # cut short
+    out2 = tmp_path / "bad.wav"
+    result = CliRunner().invoke(main, ["midi", str(bad), "-o", str(out2)], catch_exceptions=False)
+    assert result.exit_code == 2
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "bad.mid" in lines[0]
+    assert not out2.exists()
