@@ -276,6 +276,23 @@ class JackServer:
         """Disconnect two ports (by full name)."""
         self.control.disconnect(source, destination)
 
+    def has_client(self, name: str) -> bool:
+        """Whether the server holds a client called ``name`` (a process that exited without closing
+        its client leaves it behind; a synchronous server then stalls at the next graph change)."""
+        jack = _jack_module()
+        try:
+            self.control.get_uuid_for_client_name(name)
+        except jack.JackError:
+            return False
+        return True
+
+    def log_problems(self) -> list[str]:
+        """jackd's log lines that tell of a client it could not reach or a cycle it waited for."""
+        self._log.flush()
+        text = self.log_path.read_text(errors="replace")
+        return [line for line in text.splitlines()
+                if "SuspendRefNum error" in line or "ClientNotify fails" in line]
+
     def connections(self, port: str) -> list[str]:
         """Names of the ports connected to ``port``."""
         return [other.name for other in self.control.get_all_connections(port)]

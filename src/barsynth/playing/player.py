@@ -19,6 +19,7 @@ for (``jackd -t`` times ten) at its next graph change.
 from __future__ import annotations
 
 import contextlib
+import copy
 import threading
 import time
 from typing import Any, Callable, Iterator
@@ -158,6 +159,7 @@ def play(instrument: Any, *, sample_rate: float, device: Any = None, block: int 
     keyboard : .keyboard.KeyboardInput, optional
         Polled on this thread; each key it reads becomes a note.
     """
+    warm_up(instrument, block)
     ring = RingBuffer(1 << max(12, int(np.ceil(np.log2(block * (lead_blocks + 2))))))
     renderer = Renderer(instrument, ring, block=block, lead_blocks=lead_blocks)
 
@@ -203,6 +205,22 @@ def play(instrument: Any, *, sample_rate: float, device: Any = None, block: int 
         renderer.stop()
     counts.update(blocks=renderer.blocks, underruns=ring.underruns, late=renderer.late)
     return counts
+
+
+WARM_UP_NOTES = (69, 60, 81, 48, 93, 36, 105)
+
+
+def warm_up(instrument: Any, block: int) -> None:
+    """Play a note on a copy of ``instrument`` (the first note of a process loads and compiles what
+    it needs: about 0.2 s for banded here, which would come late on the first key played)."""
+    trial = copy.deepcopy(instrument)
+    for note in WARM_UP_NOTES:  # the first the model can play
+        try:
+            trial.note_on(note, 100)
+            trial.process(block)
+        except BarsynthError:
+            continue
+        return
 
 
 def _put(renderer: Renderer, message: list[int]) -> None:
