@@ -158,12 +158,22 @@ class Renderer(threading.Thread):
                     if sample < written:
                         self.late += 1
                     self._call(method, args, {"at": max(0, sample - written)})
-                self.instrument.process(self.block, out=self._buffer)
+                self._render()
                 self.ring.write(self._buffer)
                 self.blocks += 1
             else:
                 self._wake.wait(timeout=0.001)  # the callback's next read makes room
                 self._wake.clear()
+
+    def _render(self) -> None:
+        """The next block into the buffer. A note the model cannot reach is refused when its sample
+        comes (one line on :attr:`refusals`); the rest of the block is rendered after it."""
+        start = self.instrument.rendered
+        while (done := self.instrument.rendered - start) < self.block:
+            try:
+                self.instrument.process(self.block - done, out=self._buffer[done:])
+            except BarsynthError as error:
+                self.refusals.put(str(error))
 
     def _call(self, method: str, args: tuple, kwargs: dict) -> None:
         try:
