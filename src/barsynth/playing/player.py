@@ -198,6 +198,8 @@ def play(instrument: Any, *, sample_rate: float, device: Any = None, block: int 
                         break
                     while not renderer.refusals.empty():
                         echo(f"refused: {renderer.refusals.get()}")
+            except KeyboardInterrupt:  # Ctrl-C: a way to stop, like Escape
+                pass
             finally:
                 if midi_in is not None:
                     midi_in.cancel_callback()  # no new events while the stream closes
