@@ -109,7 +109,7 @@ def notes_heard(x: np.ndarray, hop: int = 256) -> list[int]:
         if peaks[k] > 0.05 * peaks.max() and peaks[k] > 1.5 * peaks[k - 3:k - 1].max():
             segment = x[k * hop + 480:k * hop + 480 + SAMPLE_RATE // 10]
             if segment.size == SAMPLE_RATE // 10:
-                note = int(round(69 + 12 * np.log2(peak_frequency_hz(segment) / 440.0)))
+                note = round(69 + 12 * np.log2(peak_frequency_hz(segment) / 440.0))
                 if not heard or heard[-1] != note:
                     heard.append(note)
     return heard
@@ -159,7 +159,8 @@ def test_notes_over_jack_midi_sound_at_their_pitches_and_spacing(jack_server, ho
     latency_ms = (np.array(heard) - np.array(sent)) / SAMPLE_RATE * 1000
     expected = re.search(r"latency ([0-9.]+) ms", ready).group(1)
     print(f"\n{how}: note to sound {latency_ms.round(1).tolist()} ms in JACK frames "
-          f"(barsynth play expected {expected} ms; the sender's wait for its next cycle not included)")
+          f"(barsynth play expected {expected} ms; the sender's wait for its next cycle not included); "
+          f"{rest.strip().splitlines()[-1]}")
 
 
 @pytest.mark.parametrize("stdin", ["pipe", "terminal"])
@@ -168,12 +169,12 @@ def test_keys_play_their_notes(jack_server, stdin):
     Escape quits, the settings restored) come back at their pitches, in order."""
     if stdin == "pipe":
         player, ready = start_player(jack_server, "--hold", "0.2", stdin=subprocess.PIPE)
-        write = lambda key: (player.stdin.write(key), player.stdin.flush())  # noqa: E731
+        write = lambda key: (player.stdin.write(key), player.stdin.flush())
     else:
         master, slave = os.openpty()
         before = termios.tcgetattr(slave)
         player, ready = start_player(jack_server, "--hold", "0.2", stdin=slave)
-        write = lambda key: os.write(master, key.encode())  # noqa: E731
+        write = lambda key: os.write(master, key.encode())
     assert "z s x d c v g b h n j m" in ready
     try:
         (source,) = jack_server.wait_for_ports(PORTAUDIO_OUT, is_audio=True, is_output=True)

@@ -966,7 +966,9 @@ def play(model_name, preset, assignments, midi_port, midi_virtual, midi_api, dev
     stop = threading.Event()
     for signum in (signal.SIGTERM, signal.SIGHUP):  # a clean stop: clients closed in order (see playing.player)
         signal.signal(signum, lambda *_: stop.set())
-    echo = lambda line: click.echo(line, err=True)  # noqa: E731
+    def echo(line: str) -> None:
+        click.echo(line, err=True)
+
     with contextlib.ExitStack() as stack:  # closes the keyboard, then the MIDI client (after the stream)
         midi_in = keyboard = None
         if midi_port is not None or midi_virtual is not None:  # MIDI first, then the audio stream

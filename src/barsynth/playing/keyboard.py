@@ -68,7 +68,7 @@ class KeyboardInput:
             tty.setcbreak(self.fd, termios.TCSANOW)
         return self
 
-    def __exit__(self, *exc: Any) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.restore()
 
     def restore(self) -> None:
@@ -84,7 +84,7 @@ class KeyboardInput:
     def bind(self, renderer: Any, sample_rate: float) -> None:
         """Send the notes to ``renderer`` (a :class:`~.live.Renderer`)."""
         self._renderer = renderer
-        self._hold_samples = max(1, int(round(self.hold_s * sample_rate)))
+        self._hold_samples = max(1, round(self.hold_s * sample_rate))
 
     def poll(self, timeout_s: float) -> str | None:
         """Wait up to ``timeout_s`` for keys and play them. Returns ``"quit"`` (a quit key),
