@@ -10,13 +10,7 @@ import pytest
 
 from barsynth.errors import ParameterError
 from barsynth.models import get_model, model_names
-from barsynth.playing.notes import (
-    NOTE_MAPS,
-    note_hz,
-    note_map,
-    pitch_of,
-    velocity_fraction,
-)
+from barsynth.playing.notes import control_settings, note_hz, note_map, pitch_of, velocity_fraction
 
 RATE = 48000
 FAST = {"fd": {"points": 40}}
@@ -24,8 +18,27 @@ NOTES = {"twang": 40, "farnell": 60, "banded": 69, "allpass": 72, "fd": 69, "rul
 """A note each model reaches from its defaults (the twang and the ruler ring low)."""
 
 
-def test_every_model_has_a_note_map():
-    assert set(NOTE_MAPS) == set(model_names())
+@pytest.mark.parametrize("name", model_names())
+def test_every_model_declares_note_maps_on_its_own_table(name):
+    model = get_model(name)
+    assert model.note_maps, name
+    for mapping in model.note_maps:
+        named = [mapping.pitch, *mapping.when, *(c.parameter for c in mapping.velocity.values()),
+                 *(c.per for c in mapping.velocity.values() if c.per),
+                 *(c.parameter for c in mapping.controls.values())]
+        assert all(n in model.table for n in named), (name, named)
+        excitations = model.table["excitation"].choices if "excitation" in model.table else (None,)
+        assert set(mapping.velocity) <= set(excitations)
+
+
+def test_the_modulation_wheel_moves_the_vibraphone_motor_and_nothing_else():
+    banded = get_model("banded")
+    vibraphone = banded.preset("vibraphone-bar")
+    assert control_settings(banded, vibraphone, 1, 127) == {"motor_rate_hz": 12.0}
+    assert control_settings(banded, vibraphone, 1, 0) == {"motor_rate_hz": 0.0}
+    assert control_settings(banded, banded.preset("marimba"), 1, 64) == {}  # no tube: no motor
+    assert control_settings(banded, vibraphone, 7, 64) == {}  # a control it has not
+    assert control_settings(get_model("twang"), get_model("twang").resolve(None), 1, 64) == {}
 
 
 @pytest.mark.parametrize("name", model_names())

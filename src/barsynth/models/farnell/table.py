@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...parameters import BOOL, Parameter, ParameterTable
+from ..notemap import NoteMap, VelocityCurve
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -31,3 +32,6 @@ FARNELL_TABLE = ParameterTable(
     ],
     record=FarnellParams,
 )
+
+NOTES = (NoteMap("frequency_hz", "frequency", "free-bar", {None: VelocityCurve("level_db", -40.0, 0.0, 0.5)}),)
+"""A note is the patch's frequency; velocity the level (dB)."""
