@@ -125,3 +125,18 @@ def test_the_modulation_wheel_sets_the_motor_rate_of_every_voice():
         band = f > 1.5
         rates[value] = f[band][np.argmax(spectrum[band])]
         assert abs(rates[value] - expected_hz) < 0.35, (value, rates[value], expected_hz)
+
+
+def test_the_modulation_wheel_starts_a_twangs_vibrato_while_it_sounds():
+    """CC 1 on the twang sets its vibrato rate at the control's sample: the sound is unchanged
+    before it and differs after it (the loudest mode swings)."""
+    def play(wheel):
+        inst = Instrument("twang", voices=1)
+        inst.note_on(40, 110)
+        if wheel:
+            inst.control(1, 80, at=RATE // 10)
+        return inst.process(RATE // 2), inst._slots[0].voice.parameters.vibrato_rate_hz
+    (plain, off), (swung, on) = play(False), play(True)
+    assert off == 0.0 and on == pytest.approx(8.0 * 80 / 127)
+    assert np.array_equal(plain[:RATE // 10], swung[:RATE // 10])
+    assert _rms(swung[RATE // 4:] - plain[RATE // 4:]) > 0.05 * _rms(plain[RATE // 4:])

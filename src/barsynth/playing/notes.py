@@ -62,7 +62,7 @@ def pitch_of(model: Any, params: Any, group: str | None, sample_rate: float) -> 
     """The model's pitch (Hz): the lowest mode of ``group`` that ``describe`` gives."""
     modes = [m for m in model.describe(params, sample_rate=sample_rate) if group is None or m.group == group]
     if not modes:
-        raise ParameterError(f"model {model.name} describes no mode {'of ' + group if group else ''} here; "
+        raise ParameterError(f"model {model.name} describes no mode{' of ' + group if group else ''} here; "
                              "allowed: settings with a pitch")
     return min(m.frequency_hz for m in modes)
 
@@ -71,6 +71,9 @@ def note_settings(model: Any, params: Any, frequency_hz: float, velocity: float,
                   sample_rate: float = 48000.0) -> dict[str, Any]:
     """The parameter changes that play ``frequency_hz`` at ``velocity`` (a fraction 0-1) on
     ``model`` from the settings ``params``; one line if the table cannot reach the note."""
+    if frequency_hz >= 0.5 * sample_rate:
+        raise ParameterError(f"the note at {frequency_hz:.6g} Hz is above the Nyquist frequency ({0.5 * sample_rate:g} Hz "
+                             f"at {sample_rate:g} Hz); allowed: notes below it")
     mapping = note_map(model, params)
     table = model.table
     changes: dict[str, Any] = {}
@@ -112,5 +115,31 @@ def control_settings(model: Any, params: Any, number: int, value: int) -> dict[s
     return {curve.parameter: curve.value(value)}
 
 
+
+def note_maps_markdown(models: Any) -> str:
+    """A Markdown table of ``models``' note maps (docs/playing.md is made with it)."""
+    rows = ["| model | when | pitch moves | velocity drives (low to high, curve exponent) | controls |",
+            "|---|---|---|---|---|"]
+    for model in models:
+        for index, mapping in enumerate(model.note_maps):
+            when = ", ".join(f"`{k} = {v}`" for k, v in mapping.when.items()) or ("otherwise" if index else "always")
+            law = "the pitch itself" if mapping.law == "frequency" else "f ~ 1/L², refined on `describe`"
+            drives = "; ".join(
+                f"{excitation + ': ' if excitation else ''}`{c.parameter}` {_shown(c.low)} to {_shown(c.high)}"
+                f"{' x ' + c.per + (' x ' + _shown(c.factor) if c.factor != 1 else '') if c.per else ''}"
+                f"{', ^' + _shown(c.gamma) if c.gamma != 1 else ''}"
+                for excitation, c in mapping.velocity.items())
+            controls = "; ".join(f"CC {n}: `{c.parameter}` {_shown(c.low)} to {_shown(c.high)}"
+                                 + (" (when " + ", ".join(f"{k} = {v}" for k, v in c.when.items()) + ")"
+                                    if c.when else "")
+                                 for n, c in mapping.controls.items()) or "-"
+            rows.append(f"| {model.name} | {when} | `{mapping.pitch}` ({law}) | {drives} | {controls} |")
+    return "\n".join(rows) + "\n"
+
+
+def _shown(value: float) -> str:
+    return f"{value:g}"
+
+
 __all__ = ["TUNING_HZ", "ControlCurve", "NoteMap", "VelocityCurve", "control_settings", "note_hz", "note_map",
-           "note_settings", "velocity_fraction"]
+           "note_maps_markdown", "note_settings", "velocity_fraction"]
