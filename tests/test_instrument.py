@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from barsynth.errors import ParameterError
 from barsynth.playing.instrument import Instrument
 
 RATE = 48000
@@ -140,3 +141,25 @@ def test_the_modulation_wheel_starts_a_twangs_vibrato_while_it_sounds():
     assert off == 0.0 and on == pytest.approx(8.0 * 80 / 127)
     assert np.array_equal(plain[:RATE // 10], swung[:RATE // 10])
     assert _rms(swung[RATE // 4:] - plain[RATE // 4:]) > 0.05 * _rms(plain[RATE // 4:])
+
+
+def test_a_note_out_of_reach_is_refused_when_played_and_nothing_is_queued():
+    inst = Instrument("fd", voices=2, parameters={"points": 40})
+    with pytest.raises(ParameterError) as info:
+        inst.note_on(-20, 100)
+    assert "length_m" in str(info.value) and "allowed" in str(info.value)
+    with pytest.raises(ParameterError):
+        inst.note_on(60, 300)
+    assert not np.any(inst.process(2048))  # nothing was queued
+    inst.note_on(69, 100)
+    assert np.max(np.abs(inst.process(2048))) > 0
+
+
+def test_length_tuned_notes_give_the_same_samples_whatever_the_blocks():
+    """A bar built from physics: each note's length is found from the instrument's settings, not
+    from whichever note a voice played last, so blocks of any size agree to the sample."""
+    events = [(0, "note_on", ((60, 100), {})), (300, "note_on", ((67, 90), {})), (900, "note_off", ((60,), {})),
+              (1200, "note_on", ((72, 80), {})), (1500, "note_on", ((60, 70), {}))]
+    whole = song(Instrument("fd", voices=2, parameters={"points": 40}), events, 3000, 3000)
+    assert np.max(np.abs(whole)) > 0
+    assert np.array_equal(song(Instrument("fd", voices=2, parameters={"points": 40}), events, 3000, 1), whole)
