@@ -209,6 +209,15 @@ def test_a_note_wakes_a_sleeping_stream_and_a_stop_silences_the_notes():
     stream.handle({"type": "note_on", "pitch": 74, "velocity": 100})
     after, _ = play(stream, 0.1)
     assert stream.running and np.max(np.abs(after)) > 0.05
+    # a note planned before a stop's fade and played during it: the fade goes on beside the new note
+    planned = stream.plan_note({"type": "note_on", "pitch": 76, "velocity": 100})
+    stream.handle({"type": "stop"})
+    fading, _ = play(stream, BLOCK / RATE)
+    stream.play_note(planned)
+    late, _ = play(stream, 0.2)
+    assert stream.running and len(stream._leaving) == 0
+    found, _ = peak_hz(late, note_hz(76))
+    assert cents(found, note_hz(76)) < 5 and np.max(np.abs(late)) > 0.05
 
 
 def test_notes_over_the_websocket_and_a_refused_one_gets_one_line():

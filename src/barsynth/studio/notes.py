@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -39,6 +39,7 @@ NOTE_HEADROOM_DBFS = -12.0
 GAIN_PROBE_S = 1.0
 MAX_RINGING = 4  # older Instruments ringing on at once
 FADE_S = 0.010
+MAX_HELD = 256  # notes on remembered for their note offs (a page that never lets go forgets the oldest)
 QUIET = 1e-6  # an older Instrument with no note held whose block falls this far below its loudest is dropped
 SUSTAIN = 64
 
@@ -106,10 +107,13 @@ class Notes:
         note_settings(self.model, settings, hz, velocity_fraction(strength), sample_rate=self.sample_rate)
         built = None
         if self.instrument is None or self.settings is not settings:
-            built = Instrument(self.model, voices=VOICES, parameters=self.model.table.as_dict(settings),
-                               sample_rate=self.sample_rate, seed=0)
+            built = self._build(settings)
         gain = self._probe_gain(settings, base_gain) if self.gain is None else None
         return PlannedNote(midi, strength, built, settings, gain)
+
+    def _build(self, settings: Any) -> Instrument:
+        return Instrument(self.model, voices=VOICES, parameters=self.model.table.as_dict(settings),
+                          sample_rate=self.sample_rate, seed=0)
 
     def _probe_gain(self, settings: Any, base_gain: float) -> float:
         """The gain (relative to ``base_gain``) at which one note at the settings' own pitch and
@@ -134,6 +138,8 @@ class Notes:
         """Play a planned note now (at the next block)."""
         if note.gain is not None and self.gain is None:
             self.gain = note.gain
+        if note.instrument is None and self.instrument is None:  # silenced since it was planned
+            note = replace(note, instrument=self._build(note.settings))
         if note.instrument is not None:
             if self.instrument is not None:
                 self._ringing.append(_Ringing(self.instrument))
@@ -143,7 +149,7 @@ class Notes:
             if self._sustain:
                 self.instrument.control(SUSTAIN, self._sustain)
         self.instrument.note_on(note.pitch, note.velocity)
-        self._held.append((note.pitch, self.instrument))
+        self._held = [*self._held[-(MAX_HELD - 1):], (note.pitch, self.instrument)]
 
     def note_off(self, pitch: Any) -> None:
         """Let a note go; a note that is not held (never played, or silenced since) is ignored."""
