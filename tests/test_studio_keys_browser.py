@@ -40,10 +40,10 @@ def heard(page) -> np.ndarray:
 
 
 def level_at(x: np.ndarray, hz: float) -> float:
-    """The spectrum's peak within 2 % of ``hz`` over its median, in dB."""
-    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size)))
+    """The spectrum's peak within 2 % of ``hz``, in dB below its strongest peak."""
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size))) + 1e-30
     f = np.fft.rfftfreq(x.size, 1 / RATE)
-    return float(20 * np.log10(np.max(spectrum[np.abs(f / hz - 1) < 0.02]) / np.median(spectrum)))
+    return float(20 * np.log10(np.max(spectrum[np.abs(f / hz - 1) < 0.02]) / np.max(spectrum)))
 
 
 def note_hz(pitch: int) -> float:
@@ -51,18 +51,20 @@ def note_hz(pitch: int) -> float:
 
 
 def sounding(page, pitches: list[int], absent: list[int] = (), what: str = "") -> dict[int, float]:
-    """Wait (a loaded machine may be slow to play) until every pitch in ``pitches`` stands 40 dB
-    over the spectrum's median in what the page plays; returns their levels (dB)."""
+    """Wait (a loaded machine may be slow to play) until every pitch in ``pitches`` is within 12 dB
+    of the strongest peak of what the page plays, the newest 0.68 s from 0.75 s on (after the
+    notes' onsets, whose clicks are broadband); returns the levels of ``pitches`` and ``absent``
+    (dB re the strongest peak)."""
     deadline_blocks = page.evaluate("() => studio.blocksReceived")
-    until(page, f"() => studio.blocksReceived >= {deadline_blocks + 60}", NEW_BLOCKS_S, f"audio for {what}")
+    until(page, f"() => studio.blocksReceived >= {deadline_blocks + 140}", NEW_BLOCKS_S, f"audio for {what}")
     levels: dict[int, float] = {}
     for _ in range(40):
         x = heard(page)
         levels = {p: level_at(x, note_hz(p)) for p in [*pitches, *absent]}
-        if x.size and all(levels[p] > 40 for p in pitches):
+        if x.size and all(levels[p] > -12 for p in pitches):
             break
         page.wait_for_timeout(100)
-    assert all(levels[p] > 40 for p in pitches), (what, levels)
+    assert all(levels[p] > -12 for p in pitches), (what, levels)
     return levels
 
 
@@ -79,9 +81,9 @@ def test_keys_play_notes_two_held_keys_sound_both_pitches(browser, studio):  # n
     page.keyboard.down("z")  # auto-repeat: no second note
     page.keyboard.down("c")  # E4, held with it
     until(page, "() => studio.state === 'playing' && studio.keys.held.join() === '60,64'", NEW_BLOCKS_S, "two held keys")
-    levels = sounding(page, [60, 64], [62, 67], "C4 and E4")
-    assert levels[62] < min(levels[60], levels[64]) - 20 and levels[67] < min(levels[60], levels[64]) - 20
-    print("two held keys, dB over the median:", {k: round(v, 1) for k, v in levels.items()})
+    levels = sounding(page, [60, 64], [57, 70], "C4 and E4")
+    assert levels[57] < min(levels[60], levels[64]) - 40 and levels[70] < min(levels[60], levels[64]) - 40
+    print("two held keys, dB re the strongest peak:", {k: round(v, 1) for k, v in levels.items()})
     assert page.evaluate("() => studio.keys.notesSent") == 2
     shown = page.evaluate("() => [...document.querySelectorAll('#keyboard .key.down')].map(k => k.dataset.step)")
     assert shown == ["0", "4"]  # the on-screen keyboard shows them
@@ -123,8 +125,8 @@ def test_a_midi_note_on_plays_its_note_and_velocity_zero_lets_go(browser, studio
     page.evaluate("() => window.__midi([0x90, 76, 110])")  # ... and E5 from the MIDI device
     until(page, "() => studio.keys.held.join() === '76'", 5, "the MIDI note held")
     levels = sounding(page, [76], [74, 78], "E5 from MIDI")
-    assert levels[74] < levels[76] - 20 and levels[78] < levels[76] - 20
-    print("a MIDI note, dB over the median:", {k: round(v, 1) for k, v in levels.items()})
+    assert levels[74] < levels[76] - 40 and levels[78] < levels[76] - 40
+    print("a MIDI note, dB re the strongest peak:", {k: round(v, 1) for k, v in levels.items()})
     page.evaluate("() => window.__midi([0xB0, 64, 127])")  # the sustain pedal goes to the stream
     page.evaluate("() => window.__midi([0x90, 76, 0])")  # a note on of velocity 0 is a note off
     until(page, "() => studio.keys.held.length === 0", 5, "the MIDI note let go")
