@@ -16,8 +16,8 @@ from barsynth.models import get_model
 from barsynth.playing.instrument import Instrument
 from barsynth.playing.notes import note_hz, pitch_of
 from barsynth.studio.notes import MAX_RINGING, VOICES
-from barsynth.studio.stream import BLOCK, LIMIT, parse_message
 from barsynth.studio.server import create_app
+from barsynth.studio.stream import BLOCK, LIMIT, parse_message
 
 RATIOS = {"tuning": "ratios", "frequency_hz": 440.0}
 BOWED = {**RATIOS, "excitation": "bow", "bow_duration_s": 60.0}
@@ -212,7 +212,7 @@ def test_a_note_wakes_a_sleeping_stream_and_a_stop_silences_the_notes():
     # a note planned before a stop's fade and played during it: the fade goes on beside the new note
     planned = stream.plan_note({"type": "note_on", "pitch": 76, "velocity": 100})
     stream.handle({"type": "stop"})
-    fading, _ = play(stream, BLOCK / RATE)
+    play(stream, BLOCK / RATE)  # one block of the fade
     stream.play_note(planned)
     late, _ = play(stream, 0.2)
     assert stream.running and len(stream._leaving) == 0
