@@ -22,7 +22,7 @@ from ..errors import ParameterError
 from ..models import get_model
 from ..models.base import check_out
 from ..models.rendering import check_block_size
-from .notes import note_hz
+from .notes import control_settings, note_hz
 
 STEAL_FADE_S = 0.005
 SILENT = 1e-7
@@ -91,7 +91,10 @@ class Instrument:
         self._queue("off", at, note_hz(pitch, frequency_hz=frequency_hz))
 
     def control(self, number: int, value: int, *, at: int = 0) -> None:
-        """A MIDI control change: 64 is the sustain pedal (the damper of a vibraphone)."""
+        """A MIDI control change: 64 is the sustain pedal (a vibraphone's damper pedal: down, the
+        bars ring on; up, a released note is damped, its preset's ``damper = release``); the
+        others move what the model's note map says (CC 1 on a vibraphone: its motor's rate) and
+        are ignored where it says nothing."""
         number = check_whole("number", number, "", 0, 127)
         value = check_whole("value", value, "", 0, 127)
         self._queue("cc", at, number, value)
@@ -124,6 +127,10 @@ class Instrument:
                     break
         else:
             number, value = event.args
+            changes = control_settings(self.model, self._slots[0].voice.parameters, number, value)
+            if changes:
+                for slot in self._slots:
+                    slot.voice.set_parameters(**changes)
             if number == SUSTAIN:
                 self._sustain = value >= 64
                 if not self._sustain:
