@@ -41,7 +41,6 @@ MAX_RINGING = 4  # older Instruments ringing on at once
 FADE_S = 0.010
 MAX_HELD = 256  # notes on remembered for their note offs (a page that never lets go forgets the oldest)
 QUIET = 1e-6  # an older Instrument with no note held whose block falls this far below its loudest is dropped
-SUSTAIN = 64
 
 
 def check_pitch(value: Any) -> float:
@@ -91,7 +90,7 @@ class Notes:
         self.settings: Any = None  # what it was built from
         self._ringing: list[_Ringing] = []  # older Instruments whose notes ring on
         self._held: list[tuple[float, Instrument]] = []  # notes on, in order, with their Instrument
-        self._sustain = 0
+        self._controls: dict[int, int] = {}  # the last value of each control change (a new Instrument gets them)
 
     @property
     def playing(self) -> bool:
@@ -146,8 +145,8 @@ class Notes:
                 for extra in self._ringing[:-MAX_RINGING]:
                     extra.fade = max(extra.fade, 0)
             self.instrument, self.settings = note.instrument, note.settings
-            if self._sustain:
-                self.instrument.control(SUSTAIN, self._sustain)
+            for number, value in self._controls.items():
+                self.instrument.control(number, value)
         self.instrument.note_on(note.pitch, note.velocity)
         self._held = [*self._held[-(MAX_HELD - 1):], (note.pitch, self.instrument)]
 
@@ -161,10 +160,10 @@ class Notes:
                 return
 
     def control(self, number: Any, value: Any) -> None:
-        """A MIDI control change for every Instrument (64: the sustain pedal)."""
+        """A MIDI control change for every Instrument (64: the sustain pedal; the others as the
+        model's note map says, e.g. CC 1), kept for the Instruments of later settings."""
         number, value = check_midi("cc", number, 0), check_midi("value", value, 0)
-        if number == SUSTAIN:
-            self._sustain = value
+        self._controls[number] = value
         for instrument in self._instruments():
             instrument.control(number, value)
 

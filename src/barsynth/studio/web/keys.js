@@ -9,7 +9,7 @@
 // (keys, mouse, MIDI) and plays with the mouse or a touch.
 //
 // Web MIDI: where the browser has navigator.requestMIDIAccess, the MIDI button asks for it and
-// lists the inputs; note on/off (a note on of velocity 0 is a note off) and CC 64 (sustain) of
+// lists the inputs; note on/off (a note on of velocity 0 is a note off), CC 1 (the wheel) and CC 64 (sustain) of
 // the chosen input (or of all) go to the stream. Without Web MIDI, or when it is refused, the
 // panel says so and nothing else happens.
 //
@@ -29,7 +29,7 @@ const BLACK = new Set([1, 3, 6, 8, 10]);
 const KEYS = 25;  // two octaves and the top C
 const MIN_BASE = 0;
 const MAX_BASE = 96;  // the top C is then 120
-const SUSTAIN = 64;
+const CONTROLS = new Set([1, 64]);  // the modulation wheel and the sustain pedal
 
 const keys = {
   enabled: false,
@@ -188,8 +188,8 @@ function fromMidi(input, data) {
     noteOn(source, data[1], data[2]);
   } else if (kind === 0x80 || kind === 0x90) {
     noteOff(source);
-  } else if (kind === 0xb0 && data[1] === SUSTAIN) {
-    sendNote({ type: "control", cc: SUSTAIN, value: data[2] });
+  } else if (kind === 0xb0 && CONTROLS.has(data[1])) {
+    sendNote({ type: "control", cc: data[1], value: data[2] });
   }
 }
 
