@@ -249,3 +249,15 @@ def test_notes_over_the_websocket_and_a_refused_one_gets_one_line():
         for pitch in (64, 71):
             found, height = peak_hz(x, note_hz(pitch))
             assert cents(found, note_hz(pitch)) < 5 and height > 100
+
+
+def test_a_full_velocity_note_at_the_settings_own_pitch_peaks_at_the_notes_headroom():
+    """The notes' gain comes from one note at the settings' pitch (440 Hz here) and velocity 127:
+    that note peaks at NOTE_HEADROOM_DBFS (-12 dBFS), whatever the strike's own level."""
+    from barsynth.studio.notes import NOTE_HEADROOM_DBFS
+
+    for level_db in (0.0, -30.0):
+        stream = started("banded", {**RATIOS, "level_db": level_db})
+        stream.handle({"type": "note_on", "pitch": 69, "velocity": 127})
+        x, _ = play(stream, 1.0)
+        assert 20 * np.log10(np.max(np.abs(x))) == pytest.approx(NOTE_HEADROOM_DBFS, abs=0.01), level_db
