@@ -107,3 +107,14 @@ def test_the_note_map_table_in_the_docs_is_generated_from_the_models():
     doc = (Path(__file__).parents[1] / "docs" / "playing.md").read_text(encoding="utf-8")
     inside = doc.split("<!-- note-maps:begin -->\n", 1)[1].split("<!-- note-maps:end -->", 1)[0]
     assert inside == note_maps_markdown([get_model(n) for n in model_names()])
+
+
+def test_a_voice_goes_from_a_loud_low_note_to_a_higher_one_whose_velocity_scales_with_it():
+    """The ruler's tip is bent by a fraction of its overhang: after a full-velocity low note, a
+    higher note (a shorter overhang) is checked with its own tip, not the last note's."""
+    voice = get_model("ruler").voice(sample_rate=RATE)
+    voice.note_on(40, 127)
+    for note in (48, 60, 72):
+        voice.note_on(note, 127)
+        p = voice.parameters
+        assert p.tip_displacement_mm == pytest.approx(0.25 * p.overhang_m * 1000.0)

@@ -17,6 +17,7 @@ and which parameter each excitation's velocity drives, through the curve
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 from typing import Any
 
 from ..checks import check_number
@@ -76,10 +77,21 @@ def note_settings(model: Any, params: Any, frequency_hz: float, velocity: float,
                              f"at {sample_rate:g} Hz); allowed: notes below it")
     mapping = note_map(model, params)
     table = model.table
-    changes: dict[str, Any] = {}
+    curve = mapping.velocity.get(getattr(params, "excitation", None))
+
+    def settings_for(pitch_value: float) -> dict[str, Any]:
+        """The pitch's parameter and the velocity's, together: a velocity that scales with the
+        pitch's parameter (a ruler's tip with its overhang) is checked with the new value."""
+        changes = {mapping.pitch: pitch_value}
+        if curve is not None:
+            scale = None if curve.per is None else SimpleNamespace(
+                **{curve.per: pitch_value if curve.per == mapping.pitch else getattr(params, curve.per)})
+            changes[curve.parameter] = curve.value(velocity, scale)
+        return changes
+
     row = table[mapping.pitch]
     if mapping.law == "frequency":
-        changes[mapping.pitch] = _in_range(row, frequency_hz, frequency_hz)
+        changes = settings_for(_in_range(row, frequency_hz, frequency_hz))
     else:
         length = getattr(params, mapping.pitch)
         current = params
@@ -88,12 +100,9 @@ def note_settings(model: Any, params: Any, frequency_hz: float, velocity: float,
             if abs(1200.0 * math.log2(found / frequency_hz)) <= PITCH_CENTS:
                 break
             length = _in_range(row, length * math.sqrt(found / frequency_hz), frequency_hz)
-            current = table.changed(current, {mapping.pitch: length})
-        changes[mapping.pitch] = length
-    excitation = getattr(params, "excitation", None)
-    curve = mapping.velocity.get(excitation)
-    if curve is not None:
-        changes[curve.parameter] = curve.value(velocity, table.changed(params, changes))
+            current = table.changed(current, settings_for(length))
+        changes = settings_for(length)
+    table.changed(params, changes)  # every check of the table, on the note's settings together
     return changes
 
 
