@@ -198,6 +198,11 @@ class Voice:
     def _render_float32(self, out: np.ndarray) -> None:
         """Into a float32 ``out``: computed in float64 (the work space, a block at a time), then cast."""
         n = out.size
+        if n <= self.max_block:  # one piece (a player's block): the loop below, without its bookkeeping
+            piece = self._scratch[:n]
+            self._render(piece)
+            out[:] = piece
+            return
         for start in range(0, n, self.max_block):
             stop = min(n, start + self.max_block)
             piece = self._scratch[:stop - start]
