@@ -21,10 +21,25 @@ the cost per sample.
 
 Targets (issue 17): >= 200 banded bars, >= 100 twangs; a fixed cost <= 1 us per call.
 
-Measured on one core (``taskset -c 1``, the machine shared), before -> after the fast paths
-(branch call-cost):
+Measured on one core (``taskset -c 1``; a 2-core machine shared with other work, so a few
+percent either way), main at eb8092c -> branch call-cost (the fast paths: Voice.process's one
+cheap test of a plain buffer, banded's one kernel call where only its loops ring, the
+Instrument's one-pass mix and peak):
 
-    (filled in below)
+    model     voices in real time   fixed us per call, f64   f32           ns/sample
+    twang         558 ->  966           3.28 -> 2.76      4.48 -> 3.40       8
+    farnell       113 ->  122           1.57 -> 1.17      2.74 -> 1.75     175
+    banded        520 -> 1048           3.35 -> 1.35      4.55 -> 2.00       9
+    allpass       104 ->  115           2.96 -> 2.05      4.12 -> 2.94      55
+    fd (1 step)    28 ->   29           2.84 -> 2.20      4.06 -> 2.94     700
+    ruler           5 ->    5           4.86 -> 4.09      5.83 -> 4.58    3300
+    kalimba        10 ->   10           4.80 -> 3.97      5.95 -> 4.51    1900
+
+What is left of the fixed cost is mostly numba unboxing the kernel's arguments (about 45 ns an
+array, 15 ns a number: banded 9 arrays, 0.5 us; twang's five records 22 arrays and 22 numbers,
+1.9 us), then Voice.process's test of the buffer (0.3 us) and the voice's own Python (0.1-0.3
+us). Under 1 us would take a model's state packed in fewer arrays (the kernels' argument types
+would change, and with them the compiled code: not done here, the sounds must stay the same).
 """
 
 from __future__ import annotations
