@@ -24,6 +24,7 @@ from .rendering import MAX_BLOCK_SAMPLES, check_block_size, check_dtype, check_s
 
 if TYPE_CHECKING:  # (a model without exciters, the twang, does not import them)
     from ..exciters import Exciter
+    from .notemap import NoteMap
 
 
 @dataclass(frozen=True)
@@ -276,6 +277,9 @@ class Model:
     exciters: ClassVar[tuple[type[Exciter], ...]] = ()
     """The exciters its voices take, each by its ``excitation`` name (checked against the table)."""
     reports_reference_errors: ClassVar[bool] = False
+    note_maps: ClassVar[tuple[NoteMap, ...]] = ()
+    """What a note's pitch moves, its velocity drives and MIDI controls move (declared next to
+    the table, :mod:`barsynth.models.notemap`); the first whose ``when`` holds is used."""
 
     def __init__(self) -> None:
         self._check_exciters()
