@@ -22,6 +22,7 @@ from ..errors import ParameterError
 from ..models import get_model
 from ..models.base import check_out
 from ..models.rendering import check_block_size
+from .mixing import add_and_peak
 from .notes import control_settings, note_hz, note_settings, velocity_fraction
 
 STEAL_FADE_S = 0.005
@@ -194,9 +195,8 @@ class Instrument:
             if slot.note is None:
                 continue
             slot.voice.process(n, out=scratch)
-            slot.peak = float(np.max(np.abs(scratch)))
+            slot.peak = add_and_peak(out, scratch)  # out += scratch; np.max(np.abs(scratch))
             slot.loudest = max(slot.loudest, slot.peak)
-            out += scratch
         kept = []
         for voice, done in self._fading:
             voice.process(n, out=scratch)
