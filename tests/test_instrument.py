@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from barsynth.errors import ParameterError
 from barsynth.playing.instrument import Instrument
 
 RATE = 48000
@@ -74,3 +75,91 @@ def test_sustain_holds_note_offs_until_the_pedal_comes_up():
     late_held = held.process(48000)[-4800:]
     late_free = free.process(48000)[-4800:]
     assert np.sqrt(np.mean(late_held ** 2)) > 3 * np.sqrt(np.mean(late_free ** 2))
+
+
+def _rms(x):
+    return float(np.sqrt(np.mean(x ** 2)))
+
+
+@pytest.mark.parametrize("preset", ["vibraphone", "vibraphone-bar"])
+def test_the_vibraphone_damper_pedal_holds_or_damps_its_notes(preset):
+    """Pedal up: a released note is damped (the preset's damper = release); pedal down: it rings
+    on until the pedal comes up, which damps it then. A marimba rings on whatever the pedal."""
+    tails = {}
+    for case in ("up", "down", "lifted"):
+        inst = Instrument("banded", voices=2, preset=preset)
+        if case != "up":
+            inst.control(64, 127)
+        inst.note_on(69, 100)
+        inst.process(RATE // 4)
+        inst.note_off(69)
+        inst.process(RATE // 4)
+        if case == "lifted":
+            inst.control(64, 0)
+        tails[case] = _rms(inst.process(RATE // 2)[-RATE // 10:])
+    assert tails["down"] > 30 * tails["up"], tails  # a damper T60 of 80 ms against seconds
+    assert tails["down"] > 30 * tails["lifted"], tails
+    marimba = Instrument("banded", voices=2, preset="marimba")
+    marimba.note_on(69, 100)
+    marimba.process(RATE // 4)
+    marimba.note_off(69)
+    ring = marimba.process(RATE // 4)
+    assert _rms(ring[-RATE // 10:]) > 0.3 * _rms(ring[:RATE // 10])
+
+
+def test_the_modulation_wheel_sets_the_motor_rate_of_every_voice():
+    """CC 1 on a vibraphone bar: its motor's tremolo rate follows the wheel (the tube's sound is
+    modulated at that rate: the envelope's spectrum peaks there)."""
+    rates = {}
+    for value, expected_hz in ((32, 12.0 * 32 / 127), (110, 12.0 * 110 / 127)):
+        inst = Instrument("banded", voices=2, preset="vibraphone-bar")
+        inst.control(1, value)
+        inst.control(64, 127)
+        inst.note_on(57, 100)
+        x = inst.process(2 * RATE)[RATE // 2:]
+        assert all(s.voice.parameters.motor_rate_hz == pytest.approx(expected_hz) for s in inst._slots)
+        envelope = np.log(np.abs(x).reshape(-1, 480).max(axis=1))  # 10 ms frames, in nepers
+        frames = np.arange(envelope.size)
+        envelope = envelope - np.polyval(np.polyfit(frames, envelope, 1), frames)  # the decay taken away
+        spectrum = np.abs(np.fft.rfft(envelope * np.hanning(envelope.size), 8 * envelope.size))
+        f = np.fft.rfftfreq(8 * envelope.size, 0.01)
+        band = f > 1.5
+        rates[value] = f[band][np.argmax(spectrum[band])]
+        assert abs(rates[value] - expected_hz) < 0.35, (value, rates[value], expected_hz)
+
+
+def test_the_modulation_wheel_starts_a_twangs_vibrato_while_it_sounds():
+    """CC 1 on the twang sets its vibrato rate at the control's sample: the sound is unchanged
+    before it and differs after it (the loudest mode swings)."""
+    def play(wheel):
+        inst = Instrument("twang", voices=1)
+        inst.note_on(40, 110)
+        if wheel:
+            inst.control(1, 80, at=RATE // 10)
+        return inst.process(RATE // 2), inst._slots[0].voice.parameters.vibrato_rate_hz
+    (plain, off), (swung, on) = play(False), play(True)
+    assert off == 0.0 and on == pytest.approx(8.0 * 80 / 127)
+    assert np.array_equal(plain[:RATE // 10], swung[:RATE // 10])
+    assert _rms(swung[RATE // 4:] - plain[RATE // 4:]) > 0.05 * _rms(plain[RATE // 4:])
+
+
+def test_a_note_out_of_reach_is_refused_when_played_and_nothing_is_queued():
+    inst = Instrument("fd", voices=2, parameters={"points": 40})
+    with pytest.raises(ParameterError) as info:
+        inst.note_on(-20, 100)
+    assert "length_m" in str(info.value) and "allowed" in str(info.value)
+    with pytest.raises(ParameterError):
+        inst.note_on(60, 300)
+    assert not np.any(inst.process(2048))  # nothing was queued
+    inst.note_on(69, 100)
+    assert np.max(np.abs(inst.process(2048))) > 0
+
+
+def test_length_tuned_notes_give_the_same_samples_whatever_the_blocks():
+    """A bar built from physics: each note's length is found from the instrument's settings, not
+    from whichever note a voice played last, so blocks of any size agree to the sample."""
+    events = [(0, "note_on", ((60, 100), {})), (300, "note_on", ((67, 90), {})), (900, "note_off", ((60,), {})),
+              (1200, "note_on", ((72, 80), {})), (1500, "note_on", ((60, 70), {}))]
+    whole = song(Instrument("fd", voices=2, parameters={"points": 40}), events, 3000, 3000)
+    assert np.max(np.abs(whole)) > 0
+    assert np.array_equal(song(Instrument("fd", voices=2, parameters={"points": 40}), events, 3000, 1), whole)

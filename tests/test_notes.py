@@ -10,13 +10,7 @@ import pytest
 
 from barsynth.errors import ParameterError
 from barsynth.models import get_model, model_names
-from barsynth.playing.notes import (
-    NOTE_MAPS,
-    note_hz,
-    note_map,
-    pitch_of,
-    velocity_fraction,
-)
+from barsynth.playing.notes import control_settings, note_hz, note_map, pitch_of, velocity_fraction
 
 RATE = 48000
 FAST = {"fd": {"points": 40}}
@@ -24,8 +18,31 @@ NOTES = {"twang": 40, "farnell": 60, "banded": 69, "allpass": 72, "fd": 69, "rul
 """A note each model reaches from its defaults (the twang and the ruler ring low)."""
 
 
-def test_every_model_has_a_note_map():
-    assert set(NOTE_MAPS) == set(model_names())
+@pytest.mark.parametrize("name", model_names())
+def test_every_model_declares_note_maps_on_its_own_table(name):
+    model = get_model(name)
+    assert model.note_maps, name
+    for mapping in model.note_maps:
+        named = [mapping.pitch, *mapping.when, *(c.parameter for c in mapping.velocity.values()),
+                 *(c.per for c in mapping.velocity.values() if c.per),
+                 *(c.parameter for c in mapping.controls.values())]
+        assert all(n in model.table for n in named), (name, named)
+        excitations = model.table["excitation"].choices if "excitation" in model.table else (None,)
+        assert set(mapping.velocity) <= set(excitations)
+
+
+def test_the_modulation_wheel_moves_what_each_model_declares():
+    banded = get_model("banded")
+    vibraphone = banded.preset("vibraphone-bar")
+    assert control_settings(banded, vibraphone, 1, 127) == {"motor_rate_hz": 12.0}
+    assert control_settings(banded, vibraphone, 1, 0) == {"motor_rate_hz": 0.0}
+    assert control_settings(banded, banded.preset("marimba"), 1, 64) == {}  # no tube: no motor
+    assert control_settings(banded, vibraphone, 7, 64) == {}  # a control it has not
+    twang, farnell = get_model("twang"), get_model("farnell")
+    assert control_settings(twang, twang.resolve(None), 1, 127) == {"vibrato_rate_hz": 8.0}
+    assert control_settings(farnell, farnell.resolve(None), 1, 0) == {"vibrato_depth_hz": 1.0}
+    for name in ("fd", "allpass", "ruler", "kalimba"):
+        assert control_settings(get_model(name), get_model(name).resolve(None), 1, 64) == {}
 
 
 @pytest.mark.parametrize("name", model_names())
@@ -60,13 +77,14 @@ def test_a_harder_note_is_louder(name):
     assert levels[1] > 1.2 * levels[0], levels
 
 
-@pytest.mark.parametrize("name,pitch", [("fd", -20), ("farnell", 120), ("kalimba", 0)])
+@pytest.mark.parametrize("name,pitch", [("fd", -20), ("farnell", 120), ("kalimba", 0), ("fd", 140), ("banded", 140)])
 def test_a_note_out_of_reach_is_one_line_and_changes_nothing(name, pitch):
     voice = get_model(name).voice(FAST.get(name, {}), sample_rate=RATE)
     before = voice.parameters
     with pytest.raises(ParameterError) as info:
         voice.note_on(pitch, 100)
     assert "allowed" in str(info.value) and "\n" not in str(info.value)
+    assert "Nyquist" in str(info.value) if pitch == 140 else "needs" in str(info.value)
     assert voice.parameters == before
 
 
@@ -79,3 +97,24 @@ def test_pitch_and_velocity_in_their_units():
             velocity_fraction(bad)
     with pytest.raises(ParameterError):
         note_hz(69, frequency_hz=440.0)
+
+
+def test_the_note_map_table_in_the_docs_is_generated_from_the_models():
+    from pathlib import Path
+
+    from barsynth.playing.notes import note_maps_markdown
+
+    doc = (Path(__file__).parents[1] / "docs" / "playing.md").read_text(encoding="utf-8")
+    inside = doc.split("<!-- note-maps:begin -->\n", 1)[1].split("<!-- note-maps:end -->", 1)[0]
+    assert inside == note_maps_markdown([get_model(n) for n in model_names()])
+
+
+def test_a_voice_goes_from_a_loud_low_note_to_a_higher_one_whose_velocity_scales_with_it():
+    """The ruler's tip is bent by a fraction of its overhang: after a full-velocity low note, a
+    higher note (a shorter overhang) is checked with its own tip, not the last note's."""
+    voice = get_model("ruler").voice(sample_rate=RATE)
+    voice.note_on(40, 127)
+    for note in (48, 60, 72):
+        voice.note_on(note, 127)
+        p = voice.parameters
+        assert p.tip_displacement_mm == pytest.approx(0.25 * p.overhang_m * 1000.0)

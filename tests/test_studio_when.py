@@ -17,7 +17,7 @@ from fastapi.testclient import TestClient
 
 from barsynth.errors import ParameterError
 from barsynth.models import get_model, model_names
-from barsynth.parameters import BOOL, CHOICE, FLOAT, FLOATS, INT, Compare, Parameter, ParameterTable
+from barsynth.parameters import BOOL, CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
 from barsynth.studio.server import create_app
 
 # A table with every kind of "when": on a choice, on one of two values, on a bool, on two parameters,

@@ -45,7 +45,7 @@ import functools
 import math
 import tracemalloc
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -306,6 +306,7 @@ BAD_BUFFERS = {
     "complex": lambda n: np.empty(n, dtype=np.complex128),
     "read-only": lambda n: np.lib.stride_tricks.as_strided(np.empty(n), writeable=False),
     "strided": lambda n: np.empty(2 * n)[::2],
+    "big-endian": lambda n: np.empty(n, dtype=">f8"),
     "list": lambda n: [0.0] * n,
 }
 
@@ -317,6 +318,31 @@ def test_a_wrong_buffer_is_refused_and_changes_nothing(name, bad):
     with pytest.raises(ParameterError, match="out"):
         mine.process(64, out=BAD_BUFFERS[bad](64))
     assert np.array_equal(mine.process(500, dtype=np.float64), reference.process(500, dtype=np.float64))
+
+
+@pytest.mark.parametrize("count", [64.0, np.float64(64), True, -1, "64"])
+def test_a_wrong_block_size_with_a_good_buffer_is_refused(count):
+    """The block size is checked even when the buffer is one process takes without checks."""
+    mine, reference = _twins("banded")
+    buf = np.empty(1 if count is True else 64)
+    with pytest.raises(ParameterError, match="num_samples"):
+        mine.process(count, out=buf)
+    assert np.array_equal(mine.process(500, dtype=np.float64), reference.process(500, dtype=np.float64))
+
+
+def test_a_buffer_changed_in_place_after_a_block_is_refused():
+    """A buffer that was fine for one block is checked again at the next (nothing is trusted for
+    having passed once): made read-only, or given another shape, in place."""
+    mine, _ = _twins("banded")
+    buf = np.empty(64)
+    mine.process(64, out=buf)
+    buf.flags.writeable = False
+    with pytest.raises(ParameterError, match="out"):
+        mine.process(64, out=buf)
+    buf.flags.writeable = True
+    buf.shape = (8, 8)
+    with pytest.raises(ParameterError, match="out"):
+        mine.process(64, out=buf)
 
 
 # -- allocations -----------------------------------------------------------------------------------

@@ -110,6 +110,8 @@ class BowControls:
         padding = POINTS - len(times)
         self.lines[row, 0] = times + times[-1:] * padding
         self.lines[row, 1] = values + values[-1:] * padding
+        if row == PRESSURE:  # (read at every block of a voice: kept, not computed there)
+            self._lifted_at = int(math.ceil(self.lines[PRESSURE, 0, -1]))
 
     def value(self, row: int, index: int) -> float:
         """One line's value at a sample index."""
@@ -146,4 +148,4 @@ class BowControls:
     @property
     def lifted_at(self) -> int:
         """The first sample index from which the bow is off the bar (until another stroke)."""
-        return int(math.ceil(self.lines[PRESSURE, 0, -1]))
+        return self._lifted_at  # (the pressure line's last time, rounded up: set with the line)

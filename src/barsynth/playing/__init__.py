@@ -1,12 +1,7 @@
-"""Playing barsynth: notes and velocities (:mod:`.notes`); polyphony, MIDI and live audio follow."""
+"""Playing barsynth: notes and velocities (:mod:`.notes`), polyphony (:mod:`.instrument`), songs
+from MIDI files (:mod:`.song`) and live audio (:mod:`.player`, over :mod:`.live`'s ring buffer)."""
 
-from .notes import (
-    NOTE_MAPS,
-    TUNING_HZ,
-    NoteMap,
-    note_hz,
-    note_settings,
-    velocity_fraction,
-)
+from .instrument import Instrument
+from .notes import TUNING_HZ, NoteMap, control_settings, note_hz, note_settings, velocity_fraction
 
-__all__ = ["NOTE_MAPS", "NoteMap", "TUNING_HZ", "note_hz", "note_settings", "velocity_fraction"]
+__all__ = ["TUNING_HZ", "Instrument", "NoteMap", "control_settings", "note_hz", "note_settings", "velocity_fraction"]

@@ -22,12 +22,15 @@ from ..errors import ParameterError
 from ..models import get_model
 from ..models.base import check_out
 from ..models.rendering import check_block_size
-from .notes import note_hz
+from .mixing import add_and_peak
+from .notes import control_settings, note_hz, note_settings, velocity_fraction
 
 STEAL_FADE_S = 0.005
 SILENT = 1e-7
 """A released voice whose block peak falls below this (times its note's peak) is free again."""
 SUSTAIN = 64
+NOTES_KEPT = 1024
+"""Notes whose settings are kept (a length-tuned note costs a few ``describe`` calls the first time)."""
 
 
 @dataclass
@@ -70,6 +73,8 @@ class Instrument:
         self.sample_rate = sample_rate
         self._slots = [_Slot(self.model.voice(settings, sample_rate=sample_rate, seed=seed, max_block=max_block))
                        for _ in range(count)]
+        self._settings = self._slots[0].voice.parameters  # every note's settings start from these
+        self._notes: dict[tuple[float, float], dict[str, Any]] = {}  # (Hz, velocity fraction) -> its settings
         self.max_block = self._slots[0].voice.max_block
         self._fading: list[tuple[Any, int]] = []  # (a stolen voice's copy, samples of its fade done)
         self._fade = max(1, int(round(STEAL_FADE_S * sample_rate)))
@@ -87,16 +92,27 @@ class Instrument:
 
     # -- events ----------------------------------------------------------------------------
     def note_on(self, pitch: Any = None, velocity: Any = 100, *, frequency_hz: Any = None, at: int = 0) -> None:
-        """A note ``at`` samples into the next process call (checked now: a note the model
-        cannot reach is refused here, in one line)."""
-        hz = note_hz(pitch, frequency_hz=frequency_hz)
-        self._queue("on", at, hz, velocity)
+        """A note ``at`` samples into the next process call. What it sets (the model's note map
+        from the instrument's own settings) is worked out now, so a note the model cannot
+        reach is refused here, in one line, and a note played again costs nothing more."""
+        hz, fraction = note_hz(pitch, frequency_hz=frequency_hz), velocity_fraction(velocity)
+        key = (hz, fraction)
+        changes = self._notes.get(key)
+        if changes is None:
+            changes = note_settings(self.model, self._settings, hz, fraction, sample_rate=self.sample_rate)
+            if len(self._notes) >= NOTES_KEPT:
+                self._notes.clear()
+            self._notes[key] = changes
+        self._queue("on", at, hz, changes)
 
     def note_off(self, pitch: Any = None, *, frequency_hz: Any = None, at: int = 0) -> None:
         self._queue("off", at, note_hz(pitch, frequency_hz=frequency_hz))
 
     def control(self, number: int, value: int, *, at: int = 0) -> None:
-        """A MIDI control change: 64 is the sustain pedal (the damper of a vibraphone)."""
+        """A MIDI control change: 64 is the sustain pedal (a vibraphone's damper pedal: down, the
+        bars ring on; up, a released note is damped, its preset's ``damper = release``); the
+        others move what the model's note map says (CC 1 on a vibraphone: its motor's rate) and
+        are ignored where it says nothing."""
         number = check_whole("number", number, "", 0, 127)
         value = check_whole("value", value, "", 0, 127)
         self._queue("cc", at, number, value)
@@ -109,12 +125,13 @@ class Instrument:
 
     def _apply(self, event: _Event) -> None:
         if event.kind == "on":
-            hz, velocity = event.args
+            hz, changes = event.args
             slot = self._choose()
             if slot.note is not None and slot.peak > SILENT * max(slot.loudest, 1e-30):
                 self._fading.append((copy.deepcopy(slot.voice), 0))
             slot.voice.reset()
-            slot.voice.note_on(frequency_hz=hz, velocity=velocity)
+            slot.voice.set_parameters(**changes)  # (Voice.note_on, its settings worked out when queued)
+            slot.voice.trigger()
             slot.note, slot.started, slot.released, slot.held = hz, event.at, None, False
             slot.peak = slot.loudest = 0.0
         elif event.kind == "off":
@@ -129,6 +146,10 @@ class Instrument:
                     break
         else:
             number, value = event.args
+            changes = control_settings(self.model, self._slots[0].voice.parameters, number, value)
+            if changes:
+                for slot in self._slots:
+                    slot.voice.set_parameters(**changes)
             if number == SUSTAIN:
                 self._sustain = value >= 64
                 if not self._sustain:
@@ -179,9 +200,8 @@ class Instrument:
             if slot.note is None:
                 continue
             slot.voice.process(n, out=scratch)
-            slot.peak = float(np.max(np.abs(scratch)))
+            slot.peak = add_and_peak(out, scratch)  # out += scratch; np.max(np.abs(scratch))
             slot.loudest = max(slot.loudest, slot.peak)
-            out += scratch
         kept = []
         for voice, done in self._fading:
             voice.process(n, out=scratch)

@@ -1,8 +1,8 @@
 """Notes on every model: what a pitch moves and what a velocity drives (spec 10.1).
 
 A note's pitch is a MIDI note number (A4 = 69 = :data:`TUNING_HZ`; fractions allowed) or a
-frequency in Hz; its velocity 0-127 (MIDI) or a fraction 0-1. Each model's :class:`NoteMap`
-says which parameter the pitch moves and how:
+frequency in Hz; its velocity 0-127 (MIDI) or a fraction 0-1. Each model declares next to its
+table (``Model.note_maps``, :mod:`barsynth.models.notemap`) which parameter the pitch moves and how:
 
 - ``frequency``: the parameter is the pitch itself (a ratio-tuned bar, Farnell's patch);
 - ``length``: a length of a bar built from physics, scaled by ``sqrt(f_now / f_target)``
@@ -17,72 +17,18 @@ and which parameter each excitation's velocity drives, through the curve
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from types import SimpleNamespace
 from typing import Any
 
 from ..checks import check_number
 from ..errors import ParameterError
+from ..models.notemap import ControlCurve, NoteMap, VelocityCurve
 
 TUNING_HZ = 440.0
 """A4, MIDI note 69 (Hz)."""
 PITCH_CENTS = 0.01
 """How close a length-tuned note lands to its frequency (cents)."""
 MAX_REFINEMENTS = 12
-
-
-@dataclass(frozen=True)
-class VelocityCurve:
-    """``parameter = low + (high - low) * v^gamma`` for a velocity fraction ``v`` (0 to 1);
-    with ``per`` that times the (new) value of the parameter ``per`` times ``factor`` (a twang's
-    tip is bent by a fraction of its overhang, in mm)."""
-
-    parameter: str
-    low: float
-    high: float
-    gamma: float = 1.0
-    per: str | None = None
-    factor: float = 1.0
-
-    def value(self, fraction: float, settings: Any = None) -> float:
-        base = self.low + (self.high - self.low) * fraction ** self.gamma
-        return base if self.per is None else base * getattr(settings, self.per) * self.factor
-
-
-@dataclass(frozen=True)
-class NoteMap:
-    """What a note does to a model (see the module docstring)."""
-
-    pitch: str
-    """The parameter the pitch moves."""
-    law: str
-    """``frequency`` or ``length``."""
-    group: str | None = None
-    """The ``describe`` group whose lowest mode is the pitch (None: the lowest mode described)."""
-    velocity: dict[str | None, VelocityCurve] = field(default_factory=dict)
-    """Per ``excitation`` (None for a model that has none), the velocity's curve."""
-    when: dict[str, str] = field(default_factory=dict)
-    """Settings under which this map holds (a banded bar tuned by ratios moves its frequency)."""
-
-
-def _mallets(level_low: float = 0.2, level_high: float = 4.0) -> dict[str | None, VelocityCurve]:
-    return {"strike": VelocityCurve("mallet_velocity_m_s", level_low, level_high, 1.0),
-            "pluck": VelocityCurve("pluck_displacement_mm", 0.05, 3.0, 1.0),
-            "bow": VelocityCurve("bow_force_n", 0.5, 8.0, 1.0)}
-
-
-NOTE_MAPS: dict[str, tuple[NoteMap, ...]] = {
-    "twang": (NoteMap("length_m", "length", "short-cantilever", {None: VelocityCurve("level_db", -40.0, 0.0, 0.5)}),),
-    "farnell": (NoteMap("frequency_hz", "frequency", "free-bar", {None: VelocityCurve("level_db", -40.0, 0.0, 0.5)}),),
-    "banded": (NoteMap("frequency_hz", "frequency", None, _mallets(), when={"tuning": "ratios"}),
-               NoteMap("length_m", "length", None, _mallets())),
-    "allpass": (NoteMap("length_m", "length", "fitted", {k: v for k, v in _mallets().items() if k != "bow"}),),
-    "fd": (NoteMap("length_m", "length", None, _mallets()),),
-    "ruler": (NoteMap("overhang_m", "length", "short cantilever",
-                      {None: VelocityCurve("tip_displacement_mm", 0.02, 0.25, 1.0, per="overhang_m", factor=1000.0)}),),
-    "kalimba": (NoteMap("vibrating_length_m", "length", "tine on bridge",
-                        {None: VelocityCurve("pluck_displacement_mm", 0.2, 3.0, 1.0)}),),
-}
-"""Each model's note maps, the first whose ``when`` holds is used."""
 
 
 def note_hz(pitch: Any = None, *, frequency_hz: Any = None, tuning_hz: float = TUNING_HZ) -> float:
@@ -107,7 +53,7 @@ def velocity_fraction(velocity: Any) -> float:
 
 def note_map(model: Any, params: Any) -> NoteMap:
     """The map of ``model`` that holds under ``params``."""
-    for candidate in NOTE_MAPS[model.name]:
+    for candidate in model.note_maps:
         if all(getattr(params, name) == value for name, value in candidate.when.items()):
             return candidate
     raise ParameterError(f"model {model.name} has no note map for these settings")
@@ -117,7 +63,7 @@ def pitch_of(model: Any, params: Any, group: str | None, sample_rate: float) -> 
     """The model's pitch (Hz): the lowest mode of ``group`` that ``describe`` gives."""
     modes = [m for m in model.describe(params, sample_rate=sample_rate) if group is None or m.group == group]
     if not modes:
-        raise ParameterError(f"model {model.name} describes no mode {'of ' + group if group else ''} here; "
+        raise ParameterError(f"model {model.name} describes no mode{' of ' + group if group else ''} here; "
                              "allowed: settings with a pitch")
     return min(m.frequency_hz for m in modes)
 
@@ -126,12 +72,26 @@ def note_settings(model: Any, params: Any, frequency_hz: float, velocity: float,
                   sample_rate: float = 48000.0) -> dict[str, Any]:
     """The parameter changes that play ``frequency_hz`` at ``velocity`` (a fraction 0-1) on
     ``model`` from the settings ``params``; one line if the table cannot reach the note."""
+    if frequency_hz >= 0.5 * sample_rate:
+        raise ParameterError(f"the note at {frequency_hz:.6g} Hz is above the Nyquist frequency ({0.5 * sample_rate:g} Hz "
+                             f"at {sample_rate:g} Hz); allowed: notes below it")
     mapping = note_map(model, params)
     table = model.table
-    changes: dict[str, Any] = {}
+    curve = mapping.velocity.get(getattr(params, "excitation", None))
+
+    def settings_for(pitch_value: float) -> dict[str, Any]:
+        """The pitch's parameter and the velocity's, together: a velocity that scales with the
+        pitch's parameter (a ruler's tip with its overhang) is checked with the new value."""
+        changes = {mapping.pitch: pitch_value}
+        if curve is not None:
+            scale = None if curve.per is None else SimpleNamespace(
+                **{curve.per: pitch_value if curve.per == mapping.pitch else getattr(params, curve.per)})
+            changes[curve.parameter] = curve.value(velocity, scale)
+        return changes
+
     row = table[mapping.pitch]
     if mapping.law == "frequency":
-        changes[mapping.pitch] = _in_range(row, frequency_hz, frequency_hz)
+        changes = settings_for(_in_range(row, frequency_hz, frequency_hz))
     else:
         length = getattr(params, mapping.pitch)
         current = params
@@ -140,12 +100,9 @@ def note_settings(model: Any, params: Any, frequency_hz: float, velocity: float,
             if abs(1200.0 * math.log2(found / frequency_hz)) <= PITCH_CENTS:
                 break
             length = _in_range(row, length * math.sqrt(found / frequency_hz), frequency_hz)
-            current = table.changed(current, {mapping.pitch: length})
-        changes[mapping.pitch] = length
-    excitation = getattr(params, "excitation", None)
-    curve = mapping.velocity.get(excitation)
-    if curve is not None:
-        changes[curve.parameter] = curve.value(velocity, table.changed(params, changes))
+            current = table.changed(current, settings_for(length))
+        changes = settings_for(length)
+    table.changed(params, changes)  # every check of the table, on the note's settings together
     return changes
 
 
@@ -155,3 +112,43 @@ def _in_range(row: Any, value: float, frequency_hz: float) -> float:
         raise ParameterError(f"the note at {frequency_hz:.6g} Hz needs {row.name} = {value:.6g}{' ' + row.unit if row.unit else ''}"
                              f"; allowed: {row.range_text()}")
     return float(value)
+
+
+def control_settings(model: Any, params: Any, number: int, value: int) -> dict[str, Any]:
+    """The parameter change MIDI control ``number`` at ``value`` (0-127) makes on ``model`` from
+    the settings ``params``; empty for a control the model (or these settings) does not have."""
+    curve: ControlCurve | None = note_map(model, params).controls.get(number)
+    if curve is None or not all(getattr(params, name) in (v if isinstance(v, tuple) else (v,))
+                                for name, v in curve.when.items()):
+        return {}
+    return {curve.parameter: curve.value(value)}
+
+
+
+def note_maps_markdown(models: Any) -> str:
+    """A Markdown table of ``models``' note maps (docs/playing.md is made with it)."""
+    rows = ["| model | when | pitch moves | velocity drives (low to high, curve exponent) | controls |",
+            "|---|---|---|---|---|"]
+    for model in models:
+        for index, mapping in enumerate(model.note_maps):
+            when = ", ".join(f"`{k} = {v}`" for k, v in mapping.when.items()) or ("otherwise" if index else "always")
+            law = "the pitch itself" if mapping.law == "frequency" else "f ~ 1/L², refined on `describe`"
+            drives = "; ".join(
+                f"{excitation + ': ' if excitation else ''}`{c.parameter}` {_shown(c.low)} to {_shown(c.high)}"
+                f"{' x ' + c.per + (' x ' + _shown(c.factor) if c.factor != 1 else '') if c.per else ''}"
+                f"{', ^' + _shown(c.gamma) if c.gamma != 1 else ''}"
+                for excitation, c in mapping.velocity.items())
+            controls = "; ".join(f"CC {n}: `{c.parameter}` {_shown(c.low)} to {_shown(c.high)}"
+                                 + (" (when " + ", ".join(f"{k} = {v}" for k, v in c.when.items()) + ")"
+                                    if c.when else "")
+                                 for n, c in mapping.controls.items()) or "-"
+            rows.append(f"| {model.name} | {when} | `{mapping.pitch}` ({law}) | {drives} | {controls} |")
+    return "\n".join(rows) + "\n"
+
+
+def _shown(value: float) -> str:
+    return f"{value:g}"
+
+
+__all__ = ["TUNING_HZ", "ControlCurve", "NoteMap", "VelocityCurve", "control_settings", "note_hz", "note_map",
+           "note_maps_markdown", "note_settings", "velocity_fraction"]

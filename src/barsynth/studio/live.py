@@ -9,7 +9,8 @@ Three tasks share one :class:`~barsynth.studio.stream.Stream`:
   while one waits are merged into it, so a dragged slider never builds a queue, even for a
   model whose every change takes a new design). Work that takes long (building
   a voice for ``start``, trying a ``set`` on a fresh voice first, which also fills the
-  models' design caches) runs in a thread and outside the lock, so the sound goes on
+  models' design caches, planning a ``note_on``: its pitch search, a new Instrument for new
+  settings) runs in a thread and outside the lock, so the sound goes on
   meanwhile; only the final swap or change takes the lock;
 - the producer, which sends every block the page has room for, computing them together
   in one thread hop, and tells the page (once per voice) when its settings cost more
@@ -121,6 +122,11 @@ async def play(socket: Any, session: Stream) -> None:
             async with busy:
                 started = session.start(model, voice, gain, rate)
             await send(started)
+            return
+        if kind == "note_on":  # the note's pitch search and voices are built off the lock
+            note = await asyncio.to_thread(session.plan_note, message)
+            async with busy:
+                session.play_note(note)
             return
         if kind == "set" and isinstance(message.get("parameters"), dict):
             if session.model is not None:

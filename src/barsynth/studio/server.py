@@ -71,7 +71,7 @@ _JS = "text/javascript; charset=utf-8"
 # The page's files (only these are served): app.js and the ES modules it imports, the worklet,
 # the stream's worker and the style sheet.
 _STATIC = {**{name: _JS for name in ("app.js", "page.js", "controls.js", "live.js", "plots.js", "files.js",
-                                    "fit.js", "worklet.js", "link.js")},
+                                    "fit.js", "worklet.js", "link.js", "keys.js")},
            "style.css": "text/css; charset=utf-8"}
 
 

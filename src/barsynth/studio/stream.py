@@ -22,7 +22,10 @@ messages are described in ``docs/studio.md``.
   begins; ``stop`` fades out, then silences the voice and stops sending.
 - Sleep: a stream whose sound has stayed below ``SILENCE`` for ``SLEEP_AFTER_S`` and
   that has not been triggered for ``AWAKE_AFTER_TRIGGER_S`` sends nothing until the next
-  trigger or change (a forgotten tab costs nothing).
+  trigger, note or change (a forgotten tab costs nothing).
+- Notes (``note_on``, ``note_off``, ``control``): several at once, played by an Instrument of
+  the stream's model beside its voice (:mod:`barsynth.studio.notes`: a ``set`` applies to the
+  notes played after it), through the same gain, limiter, sample check, stop and sleep.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from ..errors import BarsynthError, SamplesError
 from ..checks import number_within, show_value
 from ..models.crossfade import DEFAULT_FADE_S, CrossfadingVoice
 from ..models.rendering import check_samples
+from .notes import Notes, PlannedNote
 
 BLOCK = 256  # samples per message
 LEAD_S = 0.032  # how far the server may run ahead of what the page has played
@@ -65,7 +69,11 @@ MESSAGES = {  # type -> (required fields, optional fields)
     "set": ({"parameters"}, {"id"}),
     "played": ({"samples"}, set()),
     "stop": (set(), set()),
+    "note_on": ({"pitch"}, {"velocity"}),
+    "note_off": ({"pitch"}, set()),
+    "control": ({"cc", "value"}, set()),
 }
+DEFAULT_VELOCITY = 100
 
 
 class StreamError(BarsynthError):
@@ -109,6 +117,20 @@ class _Playing:
     gain: float
     release_db_per_s: float = RECOVERY_DB_PER_S  # set by the last cut (see Stream._voice_block)
     total_samples: int = 0  # the voice's samples so far (the time named in a samples error)
+    notes: Notes | None = None  # its notes (made with it)
+
+    def __post_init__(self) -> None:
+        if self.notes is None:
+            self.notes = Notes(self.model, self.voice.sample_rate)
+
+    def silence(self) -> None:
+        """Nothing sounds: the voice reset, every note gone."""
+        self.voice.reset()
+        self.notes.silence()
+
+    def copy(self) -> _Playing:
+        """A copy that rings on beside this one (a stop's fade)."""
+        return _Playing(self.model, copy.deepcopy(self.voice), self.base_gain, self.gain, notes=self.notes.copy())
 
 
 class Stream:
@@ -235,20 +257,48 @@ class Stream:
             self.applied_id = change_id
             self._wake()
         elif kind == "trigger":
-            if self._stopping >= 0:  # struck while fading out for a stop: the fade goes on, beside
-                self._leave(_Playing(playing.model, copy.deepcopy(playing.voice), playing.base_gain, playing.gain),
-                            self._stopping)
-                playing.voice.reset()  # what the stop would have left: silence, then the new strike
-                self._stopping = -1
+            self._restart_after_stop(playing)
             playing.voice.trigger()
             playing.total_samples = 0
             self._since_trigger = 0
             self._wake()
         elif kind == "release":
             playing.voice.release()
+        elif kind == "note_on":
+            self.play_note(self.plan_note(message))
+        elif kind == "note_off":
+            playing.notes.note_off(message["pitch"])
+        elif kind == "control":
+            playing.notes.control(message["cc"], message["value"])
         elif kind == "stop":
             if self._running and self._stopping < 0:
                 self._stopping = 0
+
+    def plan_note(self, message: dict[str, Any]) -> PlannedNote:
+        """Check a ``note_on`` message and build what the note needs (the slow part of a note:
+        run it off the event loop); changes nothing. A note out of range or out of the model's
+        reach raises the one line."""
+        playing = self._playing
+        if playing is None:
+            raise StreamError("a note_on message needs a started stream; send start first")
+        return playing.notes.plan(playing.voice.parameters, message["pitch"],
+                                  message.get("velocity", DEFAULT_VELOCITY), base_gain=playing.base_gain)
+
+    def play_note(self, note: PlannedNote) -> None:
+        """Play a planned note from the next block (it wakes a sleeping stream)."""
+        playing = self._playing
+        self._restart_after_stop(playing)
+        playing.notes.note_on(note)
+        self._since_trigger = 0
+        self._wake()
+
+    def _restart_after_stop(self, playing: _Playing) -> None:
+        """Struck or played while fading out for a stop: the fade goes on beside, and the new
+        sound starts from what the stop would have left (silence)."""
+        if self._stopping >= 0:
+            self._leave(playing.copy(), self._stopping)
+            playing.silence()
+            self._stopping = -1
 
     def _leave(self, playing: _Playing, done: int) -> None:
         """Fade ``playing`` out beside the new sound, ``done`` samples of the fade already past;
@@ -291,10 +341,12 @@ class Stream:
     def _voice_block(self, playing: _Playing, n: int) -> np.ndarray:
         x = playing.voice.process(n, dtype=np.float64)
         try:
+            if playing.notes.playing:
+                x = x + playing.notes.process(n)
             check_samples(x, playing.voice.parameters, self.sample_rate, start=playing.total_samples)
             playing.total_samples += n
-        except SamplesError as exc:  # never send a blow-up: silence the voice and say why
-            playing.voice.reset()
+        except BarsynthError as exc:  # never send a blow-up (or a note refused late): silence and say why
+            playing.silence()
             playing.total_samples = 0
             if len(self._errors) < MAX_ERRORS_WAITING:
                 self._errors.append(str(exc))
@@ -323,7 +375,7 @@ class Stream:
             self._stopping = -1
             self._running = False
             if self._playing is not None:
-                self._playing.voice.reset()
+                self._playing.silence()
             self._leaving = []
             return
         loud = np.flatnonzero(np.abs(out) >= SILENCE)

@@ -8,7 +8,7 @@ from typing import Any
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
 from .design import design_for
-from .table import ALLPASS_EXCITERS, TABLE
+from .table import ALLPASS_EXCITERS, NOTES, TABLE
 from .voice import AllpassVoice
 
 
@@ -19,6 +19,7 @@ class AllpassModel(Model):
     summary = ("all-pass (generalised) waveguide bar (Van Duyne & Smith 1994): travelling bending waves "
                "through fitted dispersion filters, struck or plucked; a measured comparison")
     table = TABLE
+    note_maps = NOTES
     voice_class = AllpassVoice
     exciters = ALLPASS_EXCITERS
 

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 from ...exciters import STRUCK_OR_PLUCKED, Pluck, Strike
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
-from ..rows import bar_size_parameters, excitation_parameter, level_parameter
 from ...physics.boundary import BOUNDARY_CONDITIONS
-
+from ..notemap import EXCITER_VELOCITIES, NoteMap
+from ..rows import bar_size_parameters, excitation_parameter, level_parameter
 
 ALLPASS_EXCITERS = (Strike, Pluck)
 """The exciters it offers, in the order of its ``excitation`` choices (the model's ``exciters``)."""
@@ -65,3 +65,6 @@ TABLE = ParameterTable(
     ],
     record=AllpassParams,
 )
+
+NOTES = (NoteMap("length_m", "length", "fitted", {k: v for k, v in EXCITER_VELOCITIES.items() if k != "bow"}),)
+"""A note moves the bar's length (material kept); velocity drives the strike or pluck."""

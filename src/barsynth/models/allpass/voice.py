@@ -131,7 +131,8 @@ class _Engine:
         if run is None:  # process's dispatcher would type the two records at every call (~2.4 us)
             run = self._run = compiled_for(K.process, out, force.pending, force.held, self.loop, self.state)
         run(out, force.pending, force.held, self.loop, self.state)
-        force.advance(out.size)
+        if force.pending.size:  # (nothing pending, as most blocks: nothing to advance)
+            force.advance(out.size)
 
 
 class _Retired:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from ...exciters import Bow, Pluck, Sample, Strike
 from ...parameters import CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
+from ..notemap import EXCITER_VELOCITIES, ControlCurve, NoteMap
 from ..rows import bar_size_parameters, excitation_parameter, level_parameter, profile_parameters, theory_parameters
 from .resonator import resonator_parameters
 
@@ -153,3 +154,9 @@ BANDED_TABLE = ParameterTable(
     ],
     record=BandedParams,
 )
+
+_MOTOR = ControlCurve("motor_rate_hz", 0.0, 12.0, when={"tube": "on"})
+NOTES = (NoteMap("frequency_hz", "frequency", None, EXCITER_VELOCITIES, when={"tuning": "ratios"}, controls={1: _MOTOR}),
+         NoteMap("length_m", "length", None, EXCITER_VELOCITIES, controls={1: _MOTOR}))
+"""A bar tuned by ratios moves its frequency, one built from its geometry its length (material kept);
+velocity drives the exciter; CC 1 (the modulation wheel) the vibraphone motor's rate."""

@@ -224,6 +224,20 @@ class BandedVoice(Voice):
     def _render(self, out: np.ndarray) -> None:
         """``out.size`` samples: the pieces of :meth:`_render_piece`, ending where the damper's
         glide steps and, with a tube, within the work space."""
+        bow, forces = self._stroke, self._forces
+        now = bow.now
+        if (self._run is not None and bow.lifted_at <= now and self._pressed == self._press_to
+                and not self._tube_running and not self._heard.pending.size):
+            # The common block: only the loops ring (the bow off the bar, the damper still, no tube,
+            # no attack still heard), so _render_piece would run the plain kernel over the whole
+            # block and nothing else: the same call, without its bookkeeping (the fixed cost of
+            # every block, about 1.5 us of Python, against 0.6 us for the kernel's call).
+            self._run(out, self._no_drive, forces.pending, forces.held, self._bank.loops, self._state, self._level,
+                      now)
+            bow.now = now + out.size
+            if forces.pending.size:
+                forces.advance(out.size)
+            return
         longest = self.max_block if self._tube_running else out.size
         n, done = out.size, 0
         while done < n:

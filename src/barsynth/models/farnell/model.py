@@ -7,7 +7,7 @@ from typing import Any
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
 from .design import patch_modes
-from .table import FARNELL_TABLE
+from .table import FARNELL_TABLE, NOTES
 from .voice import FarnellVoice
 
 
@@ -17,6 +17,7 @@ class FarnellModel(Model):
     name = "farnell"
     summary = "Farnell's ruler twang, Designing Sound 2010 (and, with anchor=true, the paper's anchor)"
     table = FARNELL_TABLE
+    note_maps = NOTES
     voice_class = FarnellVoice
 
     def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...parameters import BOOL, Parameter, ParameterTable
+from ..notemap import ControlCurve, NoteMap, VelocityCurve
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -31,3 +32,8 @@ FARNELL_TABLE = ParameterTable(
     ],
     record=FarnellParams,
 )
+
+NOTES = (NoteMap("frequency_hz", "frequency", "free-bar", {None: VelocityCurve("level_db", -40.0, 0.0, 0.5)},
+                 controls={1: ControlCurve("vibrato_depth_hz", 1.0, 6.0)}),)
+"""A note is the patch's frequency; velocity the level (dB); CC 1 (the modulation wheel) the
+vibrato's depth."""

@@ -10,7 +10,7 @@ import numpy as np
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
 from .design import deflection_mass, point_vector, reference_errors_cents, scheme_modes
-from .table import FD_EXCITERS, FD_TABLE
+from .table import FD_EXCITERS, FD_TABLE, NOTES
 from .voice import FdVoice
 
 MAX_DESCRIBED = 24
@@ -22,6 +22,7 @@ class FdModel(Model):
     name = "fd"
     summary = "finite-difference bar (implicit theta scheme): any boundary, undercut profiles; struck, bowed, plucked"
     table = FD_TABLE
+    note_maps = NOTES
     voice_class = FdVoice
     exciters = FD_EXCITERS
     reports_reference_errors = True

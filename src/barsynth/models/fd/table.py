@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from ...exciters import BOWED, STRUCK_OR_PLUCKED, Bow, Pluck, Strike
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
 from ...physics.boundary import BOUNDARY_CONDITIONS
+from ..notemap import EXCITER_VELOCITIES, NoteMap
 from ..rows import bar_size_parameters, excitation_parameter, level_parameter, profile_parameters, theory_parameters
 
 FD_EXCITERS = (Strike, Bow, Pluck)
@@ -88,3 +89,6 @@ FD_TABLE = ParameterTable(
     ],
     record=FdParams,
 )
+
+NOTES = (NoteMap("length_m", "length", None, EXCITER_VELOCITIES),)
+"""A note moves the bar's length (material kept); velocity drives the exciter."""

@@ -16,7 +16,7 @@ from ..ruler.design import MIN_NODES_BEYOND, Setup, decay_rate, grid_of, point_r
 from ..ruler.kernel import PAD
 from ..ruler.model import describe_engine
 from ..ruler.voice import BAR_FIELDS, EngineVoice
-from .table import KALIMBA_TABLE, KalimbaParams
+from .table import KALIMBA_TABLE, NOTES, KalimbaParams
 
 MAX_PLUCK_FRACTION = 0.3
 """The pluck point may be pushed down by at most this fraction of its distance from the bridge
@@ -143,6 +143,7 @@ class KalimbaModel(Model):
     name = "kalimba"
     summary = "a finite-difference kalimba tine, clamped behind a bridge it presses on, plucked near the tip (spec 9.4)"
     table = KALIMBA_TABLE
+    note_maps = NOTES
     voice_class = KalimbaVoice
 
     def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:

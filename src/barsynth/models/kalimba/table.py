@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
+from ..notemap import NoteMap, VelocityCurve
 from ..rows import level_parameter, resized_bar_parameters
 
 BRIDGES = ("one-sided", "pinned")
@@ -81,3 +82,6 @@ KALIMBA_TABLE = ParameterTable(
     ],
     record=KalimbaParams,
 )
+
+NOTES = (NoteMap("vibrating_length_m", "length", "tine on bridge", {None: VelocityCurve("pluck_displacement_mm", 0.2, 3.0)}),)
+"""A note moves the tine's vibrating length; velocity the pluck's displacement (mm)."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...parameters import CHOICE, INT, Parameter, ParameterTable, Sets
+from ..notemap import NoteMap, VelocityCurve
 from ..rows import level_parameter, resized_bar_parameters
 from .desk import DESK_NAMES, DESKS
 
@@ -101,3 +102,7 @@ RULER_TABLE = ParameterTable(
     ],
     record=RulerParams,
 )
+
+NOTES = (NoteMap("overhang_m", "length", "short cantilever",
+                 {None: VelocityCurve("tip_displacement_mm", 0.02, 0.25, 1.0, per="overhang_m", factor=1000.0)}),)
+"""A note moves the overhang (finger distance kept); velocity bends the tip by 2-25 % of the overhang."""

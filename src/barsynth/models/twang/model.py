@@ -8,7 +8,7 @@ from ...errors import ParameterError
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
 from .design import design_modes
-from .table import TWANG_TABLE
+from .table import NOTES, TWANG_TABLE
 from .voice import TwangVoice
 
 AUDIBLE_MIN_HZ = 20.0  # an offline render needs one mode at least this high
@@ -20,6 +20,7 @@ class TwangModel(Model):
     name = "twang"
     summary = "ruler twanged over a desk edge (Selfridge et al., AES 2022)"
     table = TWANG_TABLE
+    note_maps = NOTES
     voice_class = TwangVoice
 
     def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...parameters import BOOL, CHOICE, Compare, Parameter, ParameterTable
+from ..notemap import ControlCurve, NoteMap, VelocityCurve
 from ..rows import material_parameter
-
 
 VIBRATO_ON = {"vibrato_rate_hz": Compare(">", 0.0)}
 SHORT_HEARD = {"short_cantilever_gain": Compare(">", 0.0)}
@@ -109,3 +109,8 @@ def control_vector(p: TwangParams, out: np.ndarray | None = None) -> np.ndarray:
         value = getattr(p, param.name)
         values[row] = param.choices.index(value) if param.kind == CHOICE else float(value)
     return values
+
+NOTES = (NoteMap("length_m", "length", "short-cantilever", {None: VelocityCurve("level_db", -40.0, 0.0, 0.5)},
+                 controls={1: ControlCurve("vibrato_rate_hz", 0.0, 8.0)}),)
+"""A note moves the ruler's overhang (its short cantilever's pitch); velocity the level (dB); CC 1
+(the modulation wheel) the vibrato's rate (0: none)."""

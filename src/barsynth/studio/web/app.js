@@ -7,17 +7,21 @@
 // files, mode tables and preset files (files.js) come over HTTP. Every value is checked by the
 // server, whose one-line message is shown as it is. page.js holds what they share, among it
 // window.studio, the figures the tests read. A recording dropped on the page (or opened) is fitted
-// and played against its resynthesis by fit.js. This module wires them together and starts the page.
+// and played against its resynthesis by fit.js; notes come from the computer keyboard, the
+// on-screen keyboard and a MIDI device (keys.js). This module wires them together and starts the page.
 
 import { onChange } from "./controls.js";
 import { chooseModel, choosePreset, download, savePreset, share } from "./files.js";
 import { play, queueSet, release, setVolume, stop, trigger, updateLive } from "./live.js";
 import { startFitting } from "./fit.js";
+import { keyDown, startKeys } from "./keys.js";
 import { $, api, clearMessage, current, element, failed, showMessage, studio, typing } from "./page.js";
 import { followSize, redrawSpectrogram, schedulePicture } from "./plots.js";
 
-// Keys: space or t strikes, r releases a bow stroke, s or Escape stops (not while typing in a box).
+// Keys: space or t strikes, r releases a bow stroke, s or Escape stops (not while typing in a box);
+// while the keys play notes (k), their letters are notes (keys.js).
 function onKey(event) {
+  if (keyDown(event)) return;
   if (event.ctrlKey || event.metaKey || event.altKey || event.repeat) return;
   const target = event.target;
   const tag = target.tagName;
@@ -55,6 +59,7 @@ async function init() {
   });
   $("spec-scale").addEventListener("change", redrawSpectrogram);
   document.addEventListener("keydown", onKey);
+  startKeys();
   followSize();
   onChange((name, v) => {  // a control's change: to the live sound, and new pictures
     queueSet(name, v);

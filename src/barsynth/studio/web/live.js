@@ -14,11 +14,13 @@ const live = {
   ctx: null,
   node: null,
   gain: null,
+  tap: null,  // an AnalyserNode between the worklet and the volume: what is played (studio.liveSamples)
   worker: null,
   ready: null,
   gen: 0,  // the socket that sounds now (0: none); each Play opens one with a new number
   lastGen: 0,
   asked: 0,  // Play and Stop presses: a Play still waiting for the audio gives way to a later press
+  waiting: null,  // messages for the stream being opened (null: none is)
   started: false,
   pending: new Map(),  // set id -> {sentAt, changedAt} (performance.now()) on socket `gen`
   heardId: -1,  // the newest set id heard on socket `gen`, and when
@@ -53,7 +55,10 @@ async function ensureAudio() {
         { numberOfInputs: 0, numberOfOutputs: 1, outputChannelCount: [1] });
       const gain = ctx.createGain();
       gain.gain.value = volume();
-      node.connect(gain).connect(ctx.destination);
+      const tap = ctx.createAnalyser();
+      tap.fftSize = 32768;
+      node.connect(tap).connect(gain).connect(ctx.destination);
+      live.tap = tap;
       node.port.onmessage = (event) => fromWorklet(event.data);
       const worker = new Worker("/static/link.js");
       worker.onmessage = (event) => fromWorker(event.data);
@@ -81,9 +86,25 @@ function startMessage() {
   return { type: "start", model: current.model.name, parameters: { ...current.values }, sample_rate: live.ctx.sampleRate };
 }
 
-export async function play() {
+// The newest `count` samples the worklet played (before the volume), for the tests' ears.
+studio.liveSamples = (count = 32768) => {
+  if (!live.tap) return [];
+  const samples = new Float32Array(live.tap.fftSize);
+  live.tap.getFloatTimeDomainData(samples);
+  return Array.from(samples.subarray(samples.length - Math.min(count, samples.length)));
+};
+
+// Play: start the live sound and strike (the Play button, or a trigger with no stream open).
+export function play() {
+  return open([{ type: "trigger" }]);
+}
+
+// Open a stream whose first messages after its start are `first` (a trigger, or a note).
+// Notes played while it opens join them (a chord from a MIDI device arrives all at once).
+async function open(first) {
   clearMessage();
   const asked = ++live.asked;
+  live.waiting = [...(live.waiting || []), ...first];
   try {
     await ensureAudio();
   } catch (err) {
@@ -91,8 +112,10 @@ export async function play() {
     return;
   }
   if (asked !== live.asked) return;  // Stop (or another Play) was pressed meanwhile
+  const messages = live.waiting || [];
+  live.waiting = null;
   if (live.gen) {
-    trigger();
+    for (const message of messages) send(message);
     return;
   }
   const gen = ++live.lastGen;
@@ -104,7 +127,7 @@ export async function play() {
   studio.lastSet = null;
   live.node.port.postMessage({ type: "reset", gen });
   const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/api/stream`;
-  live.worker.postMessage({ type: "open", gen, url, start: [startMessage(), { type: "trigger" }] });
+  live.worker.postMessage({ type: "open", gen, url, start: [startMessage(), ...messages] });
   studio.streams += 1;
   setState("playing");
 }
@@ -207,6 +230,18 @@ export function trigger() {
   send({ type: "trigger" });
 }
 
+// A note for the stream (keys.js): a note on opens the live sound if it is not playing; a note
+// off or a control change with no stream has nothing to act on and is dropped.
+export function sendNote(message) {
+  if (live.gen) {
+    send(message);
+  } else if (live.waiting) {
+    live.waiting.push(message);
+  } else if (message.type === "note_on") {
+    open([message]);
+  }
+}
+
 export function release() {
   send({ type: "release" });
 }
@@ -216,6 +251,7 @@ export function release() {
 // generation numbers keep the two apart.
 export function stop() {
   live.asked += 1;
+  live.waiting = null;
   const gen = live.gen;
   if (!gen) return;
   live.gen = 0;

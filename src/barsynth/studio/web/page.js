@@ -8,7 +8,8 @@
 // sent), heardSetId, setsWaiting, playedReports (sent to the server, heartbeats too), streams
 // (sockets opened) and closes (closed by the server or the network), lastPicture and errors;
 // also inactive (the names of the controls greyed out because they have no effect now) and fit
-// (the last fit of a recording and its A/B player: see fit.js).
+// (the last fit of a recording and its A/B player: see fit.js), keys (the notes played: see keys.js)
+// and liveSamples(count) (the newest samples the worklet played: see live.js).
 
 export const $ = (id) => document.getElementById(id);
 
