@@ -34,7 +34,8 @@ KEY_NOTES = (60, 76, 69, 81)  # the marimba's second mode sits there)
 LEAD = ("--lead", "32")
 """171 ms ahead (4 blocks by default): the tests run niced beside other work, and a synthesis thread
 kept off the CPU for longer than its lead leaves a gap (counted, played as zeros); a gap over a
-note's attack would move its onset (a run with 16 blocks once did, on a busy machine)."""
+note's attack would move its onset (with 16 blocks one run of about twenty, on the busy shared
+machine, heard a note 46 ms late)."""
 GUARD_S = 60.0
 """Hang guards only."""
 
