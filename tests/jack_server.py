@@ -276,6 +276,23 @@ class JackServer:
         """Disconnect two ports (by full name)."""
         self.control.disconnect(source, destination)
 
+    def has_client(self, name: str) -> bool:
+        """Whether the server holds a client called ``name`` (a process that exited without closing
+        its client leaves it behind; a synchronous server then stalls at the next graph change)."""
+        jack = _jack_module()
+        try:
+            self.control.get_uuid_for_client_name(name)
+        except jack.JackError:
+            return False
+        return True
+
+    def log_problems(self) -> list[str]:
+        """jackd's log lines that tell of a client it could not reach or a cycle it waited for."""
+        self._log.flush()
+        text = self.log_path.read_text(errors="replace")
+        return [line for line in text.splitlines()
+                if "SuspendRefNum error" in line or "ClientNotify fails" in line]
+
     def connections(self, port: str) -> list[str]:
         """Names of the ports connected to ``port``."""
         return [other.name for other in self.control.get_all_connections(port)]
@@ -416,11 +433,20 @@ def stop_jack_server(server: JackServer) -> None:
     for path in leftovers:
         with contextlib.suppress(OSError):
             path.unlink()
-    remove_shared_files()
+
+
+def _remove_shared_files_at_the_end(config) -> None:
+    """Remove jackd2's shared files when the test session ends, not when a module's server stops:
+    libjack maps the shared registry once per process and keeps it, so a registry removed and
+    made anew by the next module's server would be one this process's clients no longer see
+    (its probe fails with ``server_error`` and the new server's segments stay behind)."""
+    if not getattr(config, "_barsynth_jack_cleanup", False):
+        config._barsynth_jack_cleanup = True
+        config.add_cleanup(remove_shared_files)
 
 
 @pytest.fixture(scope="module")
-def jack_daemon(tmp_path_factory):
+def jack_daemon(tmp_path_factory, request):
     """A running JACK server (dummy back end, 48 kHz, 256-frame blocks, synchronous mode) for one test module.
 
     Yields a :class:`JackServer`. ``JACK_DEFAULT_SERVER`` names it and ``JACK_NO_START_SERVER``
@@ -429,6 +455,7 @@ def jack_daemon(tmp_path_factory):
     ``sounddevice._terminate(); sounddevice._initialize()`` yourself). Tests use
     :func:`jack_server`, which also closes each test's clients.
     """
+    _remove_shared_files_at_the_end(request.config)
     log_path = tmp_path_factory.mktemp("jackd") / "jackd.log"
     saved = {key: os.environ.get(key) for key in ("JACK_DEFAULT_SERVER", "JACK_NO_START_SERVER")}
     server = start_jack_server(log_path)
@@ -448,7 +475,6 @@ def jack_daemon(tmp_path_factory):
                 os.environ[key] = value
         if "sounddevice" in sys.modules:
             sys.modules["sounddevice"]._initialize()
-        remove_shared_files()
 
 
 @pytest.fixture

@@ -38,12 +38,19 @@ def test_the_extras_hold_the_web_stack_and_matplotlib_and_test_pulls_them_in():
     assert any(re.fullmatch(r"barsynth\[(.*,)?plot(,.*)?\]", r) for r in extras["test"])
 
 
+DISTRIBUTIONS = {"rtmidi": "python-rtmidi"}
+"""Modules imported under another name than their PyPI package's (IPython is ipython: case only)."""
+
+
 def test_the_extras_module_names_the_same_extras_as_pyproject():
     from barsynth.extras import EXTRAS
 
     extras = _project()["optional-dependencies"]
+    assert set(EXTRAS) == set(extras) - {"all", "test", "docs", "dev"}
     for extra, modules in EXTRAS.items():
-        assert {m.lower() for m in modules} == _names(extras[extra])  # (IPython is ipython on PyPI)
+        assert {DISTRIBUTIONS.get(m, m).lower() for m in modules} == _names(extras[extra])
+    assert _names(extras["play"]) == {"sounddevice", "python-rtmidi"}
+    assert any(re.fullmatch(r"barsynth\[(.*,)?play(,.*)?\]", r) for r in extras["test"])
 
 
 def _run_without(blocked: tuple[str, ...], *args: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -101,3 +108,26 @@ def test_bow_map_without_matplotlib_says_how_to_install_it(tmp_path):
                           cwd=tmp_path)
     assert "barsynth bow-map" in _one_line(result, "pip install 'barsynth[plot]'")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("blocked", [("sounddevice",), ("rtmidi",), ("sounddevice", "rtmidi")])
+def test_play_without_sounddevice_or_rtmidi_says_how_to_install_them(tmp_path, blocked):
+    line = _one_line(_run_without(blocked, "play", "banded", "--seconds", "1", cwd=tmp_path),
+                     "pip install 'barsynth[play]'")
+    assert "barsynth play" in line and "sounddevice, python-rtmidi" in line
+
+
+def test_play_without_the_portaudio_library_names_it(tmp_path):
+    """sounddevice installed, the system's PortAudio not (sounddevice raises OSError on import)."""
+    code = ("import sys, types\n"
+            "class Finder:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name == 'sounddevice': raise OSError('PortAudio library not found')\n"
+            "sys.meta_path.insert(0, Finder())\n"
+            "sys.argv = ['barsynth', 'play', 'banded', '--seconds', '1']\n"
+            "from barsynth.entry import run\n"
+            "run()\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120,
+                            check=False)
+    line = _one_line(result, "apt-get install libportaudio2")
+    assert "PortAudio library not found" in line

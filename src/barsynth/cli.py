@@ -910,40 +910,82 @@ def midi(song_path, model_name, preset, map_path, sample_rate, voices, subtype, 
 @click.argument("model_name", metavar="MODEL")
 @_preset_option
 @_set_option
-@click.option("--midi-in", "midi_name", metavar="NAME", help="Open a MIDI input port NAME:in to play from.")
+@click.option("--midi-in", "midi_port", metavar="PORT",
+              help="Play from this MIDI port (its number, name, or a part of its name); an unknown one lists them.")
+@click.option("--midi-virtual", "midi_virtual", metavar="NAME",
+              help="Make a MIDI input port NAME:in for other programs to connect to, and play from it.")
 @click.option("--midi-api", type=_Choice(("default", "jack", "alsa")), default="default", show_default=True,
-              help="Which MIDI system the port is made in.")
+              help="Which MIDI system the port is in.")
 @click.option("--device", metavar="D", help="Audio output device (sounddevice's index or name; default: the system's).")
 @_rate_option
 @click.option("--voices", default=16, show_default=True, type=_Whole(1, 256), metavar="N", help="Voices.")
 @click.option("--block", default=256, show_default=True, type=_Whole(16, 8192), metavar="N",
               help="Samples per audio block.")
-@click.option("--seconds", type=float, metavar="S", help="Stop after S seconds (default: Ctrl-C stops).")
-def play(model_name, preset, assignments, midi_name, midi_api, device, sample_rate, voices, block, seconds):
-    """Play a model through the computer's audio (PortAudio, JACK among its hosts) from MIDI.
+@click.option("--lead", "lead_blocks", default=4, show_default=True, type=_Whole(1, 64, "blocks"), metavar="N",
+              help="Blocks the synthesis thread keeps ahead of the audio (more: safer on a busy machine, later notes).")
+@click.option("--velocity", default=100, show_default=True, type=_Whole(1, 127), metavar="V",
+              help="Keyboard notes' MIDI velocity.")
+@click.option("--hold", "hold_s", default=0.5, show_default=True, type=_Real("s", minimum=0.0, minimum_exclusive=True),
+              metavar="S", help="How long a keyboard note is held before its note off (a terminal reports no key up).")
+@click.option("--seconds", type=_Real("s", minimum=0.0, minimum_exclusive=True), metavar="S",
+              help="Stop after S seconds (default: Escape or Ctrl-C stops).")
+def play(model_name, preset, assignments, midi_port, midi_virtual, midi_api, device, sample_rate, voices, block,
+         lead_blocks, velocity, hold_s, seconds):
+    """Play a model through the computer's audio (PortAudio, JACK among its hosts) from MIDI or the keyboard.
+
+    Without --midi-in or --midi-virtual the computer keyboard plays two octaves: z s x d c v g b
+    h n j m are C4 to B4, q 2 w 3 e r 5 t 6 y 7 u i are C5 to C6, at --velocity, each held
+    --hold seconds (a terminal reports no key releases); Escape or Ctrl-D quits (q is a note).
+    When standard input is not a terminal the same characters are read from it, and its end
+    stops the playing once the last note has rung. At start, a line on stderr gives the
+    expected note-to-sound latency: PortAudio's output latency plus the ring's lead.
 
     \b
     Examples:
-      barsynth play banded --preset marimba --midi-in barsynth
-      barsynth play ruler --midi-in barsynth --midi-api jack --device jack
+      barsynth play banded --preset marimba
+      barsynth play banded --preset marimba --midi-in "Digital Piano"
+      barsynth play ruler --midi-virtual barsynth --midi-api jack --device jack
     """
+    import contextlib
+    import signal
+    import threading
+
+    require("play", "barsynth play")
+    if midi_port is not None and midi_virtual is not None:
+        raise BarsynthError("give --midi-in PORT or --midi-virtual NAME, not both")
     from .playing.instrument import Instrument
-    from .playing.player import open_midi_in
+    from .playing.keyboard import HELP, KeyboardInput
+    from .playing.player import midi_input
     from .playing.player import play as run
 
     model = _model(model_name)
     resolved = _resolve(model, preset, assignments)
     rate = _sample_rate(sample_rate)
     instrument = Instrument(model, voices, parameters=model.table.as_dict(resolved), sample_rate=rate)
-    midi_in = open_midi_in(midi_name, midi_api) if midi_name else None  # before the audio stream
     chosen = int(device) if device is not None and device.isdigit() else device
-    try:
-        counts = run(instrument, sample_rate=rate, device=chosen, block=block, midi_in=midi_in, seconds=seconds,
-                     echo=lambda line: click.echo(line))
-    except KeyboardInterrupt:
-        counts = None
+    stop = threading.Event()
+    for signum in (signal.SIGTERM, signal.SIGHUP):  # a clean stop: clients closed in order (see playing.player)
+        signal.signal(signum, lambda *_: stop.set())
+    def echo(line: str) -> None:
+        click.echo(line, err=True)
+
+    with contextlib.ExitStack() as stack:  # closes the keyboard, then the MIDI client (after the stream)
+        midi_in = keyboard = None
+        if midi_port is not None or midi_virtual is not None:  # MIDI first, then the audio stream
+            midi_in = stack.enter_context(midi_input(midi_port, virtual=midi_virtual, api=midi_api))
+            source = f"MIDI from {midi_virtual + ':in' if midi_virtual else midi_port} ({midi_api})"
+        else:
+            keyboard = stack.enter_context(KeyboardInput(velocity=velocity, hold_s=hold_s))
+            source = HELP if keyboard.is_terminal else (
+                "standard input is not a terminal: reading keys from it (its end stops); " + HELP)
+        try:
+            counts = run(instrument, sample_rate=rate, device=chosen, block=block, lead_blocks=lead_blocks,
+                         midi_in=midi_in, keyboard=keyboard, seconds=seconds, echo=echo, stop=stop, source=source)
+        except KeyboardInterrupt:
+            counts = None
     if counts is not None:
-        click.echo(f"played {counts['blocks']} blocks, {counts['underruns']} samples missing")
+        echo(f"played {counts['blocks']} blocks, {counts['underruns']} samples missing, "
+             f"{counts['late']} events late")
 
 
 @main.command("tune-undercut")

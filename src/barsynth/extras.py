@@ -1,18 +1,20 @@
 """barsynth's optional parts and the one line that says how to install each.
 
 ``pip install barsynth`` installs what rendering needs (NumPy, SciPy, numba,
-soundfile, click). Two extras add the rest:
+soundfile, click). Extras add the rest:
 
 * ``plot`` (matplotlib): the PNG pictures of ``render --plot``, ``analyze --plot``,
   ``bow-map`` and ``listen report --plot``;
 * ``studio`` (fastapi, uvicorn, websockets): the web stack of ``barsynth studio`` and of
   the listening-test server ``barsynth listen serve``;
-* ``notebook`` (IPython): hearing sounds in Jupyter (:mod:`barsynth.notebook`).
+* ``notebook`` (IPython): hearing sounds in Jupyter (:mod:`barsynth.notebook`);
+* ``play`` (sounddevice, python-rtmidi): live audio and MIDI input of ``barsynth play``
+  (sounddevice also needs the system's PortAudio library, Debian's ``libportaudio2``).
 
-``pip install 'barsynth[plot,studio]'`` (or ``'barsynth[all]'``) installs both.
+``pip install 'barsynth[plot,studio]'`` installs two of them, ``'barsynth[all]'`` all.
 
 >>> sorted(EXTRAS)
-['notebook', 'plot', 'studio']
+['notebook', 'play', 'plot', 'studio']
 """
 
 from __future__ import annotations
@@ -28,8 +30,11 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "plot": ("matplotlib",),
     "studio": ("fastapi", "uvicorn", "websockets"),
     "notebook": ("IPython",),
+    "play": ("sounddevice", "rtmidi"),
 }
-_WHAT = {"plot": "matplotlib", "studio": "the web stack (fastapi, uvicorn, websockets)", "notebook": "IPython"}
+_WHAT = {"plot": "matplotlib", "studio": "the web stack (fastapi, uvicorn, websockets)", "notebook": "IPython",
+         "play": "live audio and MIDI (sounddevice, python-rtmidi)"}
+_SYSTEM = {"sounddevice": " (PortAudio; on Debian: apt-get install libportaudio2)"}
 
 
 class MissingExtraError(BarsynthError):
@@ -45,6 +50,9 @@ def missing_modules(extra: str) -> list[str]:
             importlib.import_module(name)
         except ImportError:
             missing.append(name)
+        except OSError as error:  # installed, but a system library it loads is not (sounddevice: PortAudio)
+            raise MissingExtraError(f"{name} is installed but could not load a system library: "
+                                    f"{' '.join(str(error).split())}" + _SYSTEM.get(name, "")) from None
     return missing
 
 

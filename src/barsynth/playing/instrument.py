@@ -85,6 +85,11 @@ class Instrument:
         self._scratch = np.empty(self.max_block)
         self._mix = np.empty(self.max_block)
 
+    @property
+    def rendered(self) -> int:
+        """Samples rendered so far (events' ``at`` counts from here)."""
+        return self._now
+
     # -- events ----------------------------------------------------------------------------
     def note_on(self, pitch: Any = None, velocity: Any = 100, *, frequency_hz: Any = None, at: int = 0) -> None:
         """A note ``at`` samples into the next process call. What it sets (the model's note map
