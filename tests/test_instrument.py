@@ -163,3 +163,60 @@ def test_length_tuned_notes_give_the_same_samples_whatever_the_blocks():
     whole = song(Instrument("fd", voices=2, parameters={"points": 40}), events, 3000, 3000)
     assert np.max(np.abs(whole)) > 0
     assert np.array_equal(song(Instrument("fd", voices=2, parameters={"points": 40}), events, 3000, 1), whole)
+
+
+STEALS = [(0, "note_on", ((60, 127), {})), (3000, "note_on", ((84, 40), {})), (9000, "note_on", ((72, 100), {})),
+          (20000, "note_off", ((60,), {})), (20000, "note_off", ((84,), {})), (26000, "note_on", ((67, 90), {})),
+          (30000, "note_on", ((65, 90), {})), (34000, "note_on", ((62, 90), {}))]
+
+
+@pytest.mark.parametrize("block", [64, 100, 4801])
+def test_which_voice_is_stolen_does_not_depend_on_the_blocks(block):
+    """Two voices, more notes: the quietest voice is judged by whole windows of the instrument's
+    own samples, so the same voices are stolen (and the same samples come out) in any blocks."""
+    whole = song(Instrument("banded", voices=2, preset="marimba"), STEALS, 40000, 40000)
+    parts = Instrument("banded", voices=2, preset="marimba")
+    assert np.array_equal(song(parts, STEALS, 40000, block), whole)
+
+
+def test_a_note_off_releases_the_oldest_note_of_its_pitch():
+    inst = Instrument("banded", voices=2, parameters={"excitation": "bow", "bow_duration_s": 60.0})
+    inst.note_on(64, 100)
+    inst.note_on(60, 100, at=10)
+    inst.note_off(64, at=100)
+    inst.note_on(60, 100, at=200)  # takes the first voice (the oldest released): slot order is not age
+    inst.process(1000)
+    inst.note_off(60)
+    inst.process(10)
+    first, second = sorted(inst._slots, key=lambda s: s.started)
+    assert (first.started, second.started) == (10, 200)
+    assert first.released is not None and second.released is None
+
+
+def test_a_rung_out_voice_is_freed_and_no_longer_rendered():
+    inst = Instrument("banded", voices=4, preset="xylophone")
+    for k, note in enumerate((60, 64, 67, 72)):
+        inst.note_on(note, 100, at=k)
+    inst.process(RATE // 10)
+    for note in (60, 64, 67, 72):
+        inst.note_off(note)
+    tail = inst.process(30 * RATE)
+    assert all(slot.note is None for slot in inst._slots)
+    freed_at = np.flatnonzero(tail)[-1]
+    assert freed_at < 29 * RATE and np.max(np.abs(tail[freed_at - 4800:freed_at])) < 1e-5 * np.max(np.abs(tail))
+    inst.note_on(60, 100)  # a freed voice plays again
+    assert np.max(np.abs(inst.process(4800))) > 0.1 * np.max(np.abs(tail))
+
+
+def test_a_soft_note_after_a_loud_one_starts_soft():
+    """Farnell's level (and pitch) start at the note's own settings, not the last note's: a
+    velocity-10 note's first 5 ms are as soft as the rest of it, against a velocity-127 note."""
+    inst = Instrument("farnell", voices=1)
+    inst.note_on(60, 127)
+    loud = inst.process(RATE // 10)
+    inst.note_off(60)
+    inst.process(5 * RATE)
+    assert inst._slots[0].note is None  # rung out: the next note takes the voice as it is (no fading copy)
+    inst.note_on(60, 10)
+    soft = inst.process(RATE // 10)
+    assert np.max(np.abs(soft[:240])) < 0.1 * np.max(np.abs(loud[:240]))

@@ -2,8 +2,9 @@
 
 Events (note on, note off, control change) take effect at a sample: ``at`` samples into the
 next :meth:`Instrument.process` call, so a list of timed events gives the same samples
-rendered in one block or in many. A note takes a silent voice, else the oldest released one,
-else the quietest; a voice taken from a note that still sounds fades out over
+rendered in one block or in many. A note takes a free voice (never used, or released and rung
+out), else the oldest released one, else the quietest (by its last :data:`WINDOW`'s peak, so
+these choices do not depend on the blocks either); a voice taken from a note that still sounds fades out over
 ``STEAL_FADE_S`` beside the new note (a copy of it, made at the event: no click). A released
 note rings on (its tail); with the sustain pedal down (CC 64 >= 64) note offs wait until it
 comes up.
@@ -23,14 +24,19 @@ from ..models import get_model
 from ..models.base import check_out
 from ..models.rendering import check_block_size
 from .mixing import add_and_peak
-from .notes import control_settings, note_hz, note_settings, velocity_fraction
+from .notes import control_settings, note_hz, note_map, note_settings, velocity_fraction
 
 STEAL_FADE_S = 0.005
 SILENT = 1e-7
-"""A released voice whose block peak falls below this (times its note's peak) is free again."""
+"""A released voice whose window peak falls below this (times its loudest window's) is free again
+and no longer rendered (-140 dB)."""
 SUSTAIN = 64
 NOTES_KEPT = 1024
-"""Notes whose settings are kept (a length-tuned note costs a few ``describe`` calls the first time)."""
+"""Notes whose pitch setting is kept (a length-tuned note costs a few ``describe`` calls the first
+time: 0.1 ms on banded, 5 ms kalimba, about 50 ms fd, 110 ms allpass; then nothing, whatever its velocity)."""
+WINDOW = 256
+"""Voices' peaks are taken over windows of this many samples, aligned on the instrument's own
+sample count: stealing and freeing then depend on the sound only, not on the caller's blocks."""
 
 
 @dataclass
@@ -40,7 +46,11 @@ class _Slot:
     started: int = -1
     released: int | None = None
     peak: float = 0.0
+    """The peak of the last whole :data:`WINDOW`."""
     loudest: float = 0.0
+    """The loudest window's peak since the note began."""
+    window_peak: float = 0.0
+    """The peak so far of the window being rendered."""
     held: bool = False
     """Its note off came while the sustain pedal was down."""
 
@@ -74,7 +84,8 @@ class Instrument:
         self._slots = [_Slot(self.model.voice(settings, sample_rate=sample_rate, seed=seed, max_block=max_block))
                        for _ in range(count)]
         self._settings = self._slots[0].voice.parameters  # every note's settings start from these
-        self._notes: dict[tuple[float, float], dict[str, Any]] = {}  # (Hz, velocity fraction) -> its settings
+        self._pitch_parameter = note_map(self.model, self._settings).pitch
+        self._pitches: dict[float, float] = {}  # a note's Hz -> the value its pitch's parameter takes
         self.max_block = self._slots[0].voice.max_block
         self._fading: list[tuple[Any, int]] = []  # (a stolen voice's copy, samples of its fade done)
         self._fade = max(1, int(round(STEAL_FADE_S * sample_rate)))
@@ -96,13 +107,12 @@ class Instrument:
         from the instrument's own settings) is worked out now, so a note the model cannot
         reach is refused here, in one line, and a note played again costs nothing more."""
         hz, fraction = note_hz(pitch, frequency_hz=frequency_hz), velocity_fraction(velocity)
-        key = (hz, fraction)
-        changes = self._notes.get(key)
-        if changes is None:
-            changes = note_settings(self.model, self._settings, hz, fraction, sample_rate=self.sample_rate)
-            if len(self._notes) >= NOTES_KEPT:
-                self._notes.clear()
-            self._notes[key] = changes
+        changes = note_settings(self.model, self._settings, hz, fraction, sample_rate=self.sample_rate,
+                                pitch_value=self._pitches.get(hz))
+        if hz not in self._pitches:
+            if len(self._pitches) >= NOTES_KEPT:
+                self._pitches.clear()
+            self._pitches[hz] = changes[self._pitch_parameter]
         self._queue("on", at, hz, changes)
 
     def note_off(self, pitch: Any = None, *, frequency_hz: Any = None, at: int = 0) -> None:
@@ -127,23 +137,25 @@ class Instrument:
         if event.kind == "on":
             hz, changes = event.args
             slot = self._choose()
-            if slot.note is not None and slot.peak > SILENT * max(slot.loudest, 1e-30):
+            if slot.note is not None:  # a sounding voice taken: its copy fades out beside the new note
                 self._fading.append((copy.deepcopy(slot.voice), 0))
+            # (Voice.note_on, its settings worked out when queued; set before the reset, which starts
+            # a voice at its settings: set after it, Farnell's level and pitch would glide from the last note's)
+            slot.voice.set_parameters(**changes)
             slot.voice.reset()
-            slot.voice.set_parameters(**changes)  # (Voice.note_on, its settings worked out when queued)
             slot.voice.trigger()
             slot.note, slot.started, slot.released, slot.held = hz, event.at, None, False
-            slot.peak = slot.loudest = 0.0
+            slot.peak = slot.loudest = slot.window_peak = 0.0
         elif event.kind == "off":
             (hz,) = event.args
-            for slot in self._slots:
-                if slot.note == hz and slot.released is None and not slot.held:
-                    if self._sustain:
-                        slot.held = True
-                    else:
-                        slot.voice.note_off()
-                        slot.released = event.at
-                    break
+            sounding = [s for s in self._slots if s.note == hz and s.released is None and not s.held]
+            if sounding:
+                slot = min(sounding, key=lambda s: s.started)  # the oldest note of that pitch
+                if self._sustain:
+                    slot.held = True
+                else:
+                    slot.voice.note_off()
+                    slot.released = event.at
         else:
             number, value = event.args
             changes = control_settings(self.model, self._slots[0].voice.parameters, number, value)
@@ -159,8 +171,7 @@ class Instrument:
                             slot.released, slot.held = event.at, False
 
     def _choose(self) -> _Slot:
-        free = [s for s in self._slots if s.note is None or (s.released is not None
-                                                             and s.peak <= SILENT * max(s.loudest, 1e-30))]
+        free = [s for s in self._slots if s.note is None]
         if free:
             return free[0]
         released = [s for s in self._slots if s.released is not None]
@@ -196,12 +207,22 @@ class Instrument:
         n = out.size
         out.fill(0.0)
         scratch = self._scratch[:n]
+        first = (-self._now) % WINDOW or WINDOW  # samples to the end of the window this piece starts in
         for slot in self._slots:
             if slot.note is None:
                 continue
             slot.voice.process(n, out=scratch)
-            slot.peak = add_and_peak(out, scratch)  # out += scratch; np.max(np.abs(scratch))
-            slot.loudest = max(slot.loudest, slot.peak)
+            start, stop = 0, min(n, first)
+            while start < n:
+                # out += scratch; np.max(np.abs(scratch)), a window's piece at a time
+                slot.window_peak = max(slot.window_peak, add_and_peak(out[start:stop], scratch[start:stop]))
+                if (self._now + stop) % WINDOW == 0:  # a whole window: its peak is the voice's
+                    slot.peak, slot.window_peak = slot.window_peak, 0.0
+                    slot.loudest = max(slot.loudest, slot.peak)
+                    if slot.released is not None and slot.peak <= SILENT * max(slot.loudest, 1e-30):
+                        slot.note = None  # rung out: free, and no longer rendered
+                        break
+                start, stop = stop, min(n, stop + WINDOW)
         kept = []
         for voice, done in self._fading:
             voice.process(n, out=scratch)

@@ -69,9 +69,11 @@ def pitch_of(model: Any, params: Any, group: str | None, sample_rate: float) -> 
 
 
 def note_settings(model: Any, params: Any, frequency_hz: float, velocity: float, *,
-                  sample_rate: float = 48000.0) -> dict[str, Any]:
+                  sample_rate: float = 48000.0, pitch_value: float | None = None) -> dict[str, Any]:
     """The parameter changes that play ``frequency_hz`` at ``velocity`` (a fraction 0-1) on
-    ``model`` from the settings ``params``; one line if the table cannot reach the note."""
+    ``model`` from the settings ``params``; one line if the table cannot reach the note.
+    ``pitch_value``: the pitch's parameter as an earlier call found it for this frequency from
+    the same settings (the search on ``describe`` is then skipped: a velocity costs nothing)."""
     if frequency_hz >= 0.5 * sample_rate:
         raise ParameterError(f"the note at {frequency_hz:.6g} Hz is above the Nyquist frequency ({0.5 * sample_rate:g} Hz "
                              f"at {sample_rate:g} Hz); allowed: notes below it")
@@ -90,7 +92,9 @@ def note_settings(model: Any, params: Any, frequency_hz: float, velocity: float,
         return changes
 
     row = table[mapping.pitch]
-    if mapping.law == "frequency":
+    if pitch_value is not None:
+        changes = settings_for(pitch_value)
+    elif mapping.law == "frequency":
         changes = settings_for(_in_range(row, frequency_hz, frequency_hz))
     else:
         length = getattr(params, mapping.pitch)
