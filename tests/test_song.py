@@ -82,3 +82,45 @@ def test_the_cli_renders_a_song_and_refuses_a_corrupt_file_in_one_line(tmp_path)
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "bad.mid" in lines[0]
     assert not out2.exists()
+
+
+def test_a_pedal_put_down_before_the_first_note_holds_the_notes(tmp_path):
+    """CC 64 = 127 at the start, then a short struck note on a vibraphone (damper =
+    release): held by the pedal it rings on; without the pedal event it is damped."""
+    def render(pedal):
+        midi = mido.MidiFile(ticks_per_beat=480)
+        track = mido.MidiTrack()
+        midi.tracks.append(track)
+        if pedal:
+            track.append(mido.Message("control_change", control=64, value=127, time=0))
+        track.append(mido.Message("note_on", note=69, velocity=100, time=0))
+        track.append(mido.Message("note_off", note=69, time=240))  # a quarter of a second at 120 bpm
+        track.append(mido.MetaMessage("end_of_track", time=960))
+        path = tmp_path / f"pedal-{pedal}.mid"
+        midi.save(path)
+        song = read_midi(path)
+        return render_song(song, load_map(None, model="banded", preset="vibraphone"), sample_rate=48000)
+    held, damped = render(True), render(False)
+    window = slice(int(0.6 * 48000), int(0.7 * 48000))
+    rms = lambda x: float(np.sqrt(np.mean(x[window] ** 2)))  # noqa: E731
+    assert rms(held) > 30 * rms(damped)
+
+
+def test_notes_a_model_cannot_reach_are_left_out_with_one_warning(tmp_path):
+    """The twang reaches keys up to about 75: a song with two higher keys renders the others (at
+    their pitches) and says in one line what it left out."""
+    import soundfile
+    from click.testing import CliRunner
+
+    from barsynth.cli import main
+
+    path = tmp_path / "high.mid"
+    write_song(path, [(0, 40, 0, 1), (0, 90, 1, 1), (0, 100, 2, 1), (0, 45, 3, 1)])
+    out = tmp_path / "high.wav"
+    result = CliRunner().invoke(main, ["midi", str(path), "--model", "twang", "-o", str(out)], catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    warnings = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and "2 notes left out (keys 90-100, channel 1)" in warnings[0]
+    assert "length_m" in warnings[0] and "2 notes)" in result.stdout
+    x, rate = soundfile.read(str(out))
+    assert abs(peak_hz(x[int(1.5 * rate):int(2.0 * rate)], 60, 120) - 110.0) < 3.0  # key 45 at 1.5 s (A2)

@@ -892,18 +892,26 @@ def midi(song_path, model_name, preset, map_path, sample_rate, voices, subtype, 
 
     try:
         with ctrl_c:
-            samples = render_song(song, channel_map, sample_rate=rate, voices=voices, watch=watch)
+            refused: list = []
+            samples = render_song(song, channel_map, sample_rate=rate, voices=voices, watch=watch, refused=refused)
     except KeyboardInterrupt:
         raise _Interrupted("interrupted; nothing written") from None
     finally:
         progress.close()
+    if refused:
+        keys = sorted({note.key for note, _ in refused})
+        channels = sorted({note.channel + 1 for note, _ in refused})
+        first, reason = refused[0]
+        _warn(f"{len(refused)} note{'s' if len(refused) > 1 else ''} left out (keys {keys[0]}-{keys[-1]}, channel"
+              f"{'s' if len(channels) > 1 else ''} {', '.join(map(str, channels))}), the model cannot reach them; "
+              f"the first, at {float(first.time):.3f} s: {reason}")
     import numpy as np
 
     peak = float(np.max(np.abs(samples))) if samples.size else 0.0
     if peak > 0.0:
         samples = samples * (10 ** (-1.0 / 20.0) / peak)  # -1 dBFS, as render does
     _write_all([(output, lambda tmp: write_audio(tmp, samples, rate, fmt=fmt, subtype=file_subtype))])
-    click.echo(f"wrote {output} ({samples.size / rate:.2f} s at {rate:g} Hz, {len(song.notes())} notes)")
+    click.echo(f"wrote {output} ({samples.size / rate:.2f} s at {rate:g} Hz, {len(song.notes()) - len(refused)} notes)")
 
 
 @main.command(cls=_ModelCommand)

@@ -3,8 +3,10 @@ every event at its sample (spec 10.3; :mod:`barsynth.midi` reads the file and th
 
 A note plays on the instrument its channel's assignment names (the program in force when it
 starts); its note off goes to the same instrument; a control change goes to every instrument
-its channel has played on. After the song's end the tails ring until every instrument is
-``TAIL_DB`` below the loudest block heard, at most ``MAX_TAIL_S``.
+its channel has played on, and an instrument's first note on a channel brings it the channel's
+controls so far (a sustain pedal put down before the first note holds it). After the song's end
+the tails ring until every instrument is ``TAIL_DB`` below the loudest block heard, at most
+``MAX_TAIL_S``.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..midi.events import ControlChange, NoteOff, NoteOn
 from .instrument import Instrument
 
@@ -22,12 +25,16 @@ MAX_TAIL_S = 30.0
 
 
 def render_song(song: Any, channel_map: Any, *, sample_rate: float = 48000.0, voices: int = 16,
-                watch: Callable[[float, float | None], None] | None = None) -> np.ndarray:
+                watch: Callable[[float, float | None], None] | None = None,
+                refused: list[tuple[Any, str]] | None = None) -> np.ndarray:
     """The song's samples (float64, the models' own levels). ``watch(done_s, total_s)`` is
-    called after each block (a progress line; it may raise to stop)."""
+    called after each block (a progress line; it may raise to stop). A note its model cannot
+    reach (a key beyond a twang's table) is left out and, with ``refused``, appended there as
+    (its NoteOn, the one-line reason); without it the first such note raises."""
     instruments: dict[Any, Instrument] = {}
     playing: dict[tuple[int, int], Instrument] = {}  # (channel, key) -> its instrument
     by_channel: dict[int, set[int]] = {}
+    controls: dict[int, dict[int, int]] = {}  # channel -> control -> its last value
     events = list(song.events)
     indices = song.sample_indices(sample_rate)
     end = song.length_samples(sample_rate)
@@ -39,7 +46,13 @@ def render_song(song: Any, channel_map: Any, *, sample_rate: float = 48000.0, vo
     while now < limit:
         n = BLOCK
         while k < len(events) and indices[k] < now + n:
-            _route(events[k], indices[k] - now, channel_map, instruments, playing, by_channel, voices, sample_rate)
+            try:
+                _route(events[k], indices[k] - now, channel_map, instruments, playing, by_channel, controls, voices,
+                       sample_rate)
+            except ParameterError as error:
+                if refused is None:
+                    raise
+                refused.append((events[k], str(error)))
             k += 1
         block.fill(0.0)
         for instrument in instruments.values():
@@ -58,7 +71,7 @@ def render_song(song: Any, channel_map: Any, *, sample_rate: float = 48000.0, vo
 
 
 def _route(event: Any, at: int, channel_map: Any, instruments: dict, playing: dict, by_channel: dict,
-           voices: int, sample_rate: float) -> None:
+           controls: dict, voices: int, sample_rate: float) -> None:
     if isinstance(event, NoteOn):
         assignment = channel_map.assignment(event.channel, event.program)
         if assignment is None:
@@ -70,14 +83,19 @@ def _route(event: Any, at: int, channel_map: Any, instruments: dict, playing: di
             model = get_model(assignment.model)
             instrument = instruments[assignment] = Instrument(
                 model, voices, parameters=model.table.as_dict(assignment.parameters), sample_rate=sample_rate)
-        instrument.note_on(event.key, event.velocity, at=at)
+        on_channel = by_channel.setdefault(event.channel, set())
+        if id(instrument) not in on_channel:  # the channel's controls so far (a pedal put down before any note)
+            on_channel.add(id(instrument))
+            for number, value in controls.get(event.channel, {}).items():
+                instrument.control(number, value, at=at)
+        instrument.note_on(event.key, event.velocity, at=at)  # (refused before it sounds: its note off finds nothing)
         playing[(event.channel, event.key)] = instrument
-        by_channel.setdefault(event.channel, set()).add(id(instrument))
     elif isinstance(event, NoteOff):
         instrument = playing.pop((event.channel, event.key), None)
         if instrument is not None:
             instrument.note_off(event.key, at=at)
     elif isinstance(event, ControlChange):
+        controls.setdefault(event.channel, {})[event.control] = event.value
         for instrument in instruments.values():
             if id(instrument) in by_channel.get(event.channel, ()):
                 instrument.control(event.control, event.value, at=at)
