@@ -52,6 +52,13 @@ def test_escape_and_ctrl_d_quit_arrow_keys_and_other_characters_do_nothing():
     assert keyboard.keys("x\x04c") == "quit" and [c[1] for c in renderer.calls] == [(62, 100), (62,)]
 
 
+def test_an_arrow_key_inside_a_read_is_skipped_and_an_escape_ending_it_quits():
+    keyboard, renderer = _keyboard()
+    assert keyboard.keys("z\x1b[Ax\x1b[1;5Cc") is None  # a note, up, a note, Ctrl-right, a note
+    assert [c[1] for c in renderer.calls if c[0] == "note_on"] == [(60, 100), (62, 100), (64, 100)]
+    assert keyboard.keys("v\x1b") == "quit"
+
+
 def test_the_end_of_a_pipe_ends_the_input():
     keyboard, _ = _keyboard()
     with keyboard:

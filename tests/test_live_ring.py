@@ -52,7 +52,6 @@ def test_the_renderer_feeds_a_slow_callback_the_instruments_samples_in_order():
     while done < got.size and time.monotonic() < deadline:
         if ring.available() >= 128:
             ring.read_into(got[done:done + 128])
-            renderer.consumed()
             done += 128
         else:
             time.sleep(0.0005)
@@ -69,7 +68,6 @@ def _consume(ring: RingBuffer, renderer: Renderer, got: np.ndarray, start: int, 
     while done < stop and time.monotonic() < deadline:
         if ring.available() >= piece:
             ring.read_into(got[done:done + piece])
-            renderer.consumed()
             done += piece
         else:
             time.sleep(0.0005)

@@ -118,3 +118,9 @@ def test_a_voice_goes_from_a_loud_low_note_to_a_higher_one_whose_velocity_scales
         voice.note_on(note, 127)
         p = voice.parameters
         assert p.tip_displacement_mm == pytest.approx(0.25 * p.overhang_m * 1000.0)
+
+
+def test_numpy_integers_are_midi_velocities():
+    assert velocity_fraction(np.int64(127)) == 1.0 and velocity_fraction(np.uint8(0)) == 0.0
+    with pytest.raises(ParameterError):
+        velocity_fraction(np.int64(128))

@@ -99,9 +99,7 @@ class KeyboardInput:
 
     def keys(self, text: str) -> str | None:
         """Play the keys in ``text``; ``"quit"`` at a quit key."""
-        if text.startswith("\x1b") and len(text) > 1:  # an arrow or function key's sequence: ignored
-            return None
-        for key in text:
+        for key in _without_sequences(text):
             if key in QUIT_KEYS:
                 return "quit"
             note = KEY_NOTES.get(key.lower())
@@ -115,3 +113,22 @@ class KeyboardInput:
                                   f"{self.notes} notes  [{HELP}]")
                 self.status.flush()
         return None
+
+
+def _without_sequences(text: str) -> str:
+    """``text`` without the escape sequences of arrow and function keys (ESC [ or ESC O, then
+    parameters, up to a final byte @ to ~) or of Alt with a key (ESC and the key), wherever in
+    the read they come; an Escape that ends the read stays (the quit key)."""
+    kept, i = [], 0
+    while i < len(text):
+        if text[i] == "\x1b" and i + 1 < len(text):
+            j = i + 2
+            if text[i + 1] in "[O":
+                while j < len(text) and not "@" <= text[j] <= "~":
+                    j += 1
+                j += 1
+            i = j
+            continue
+        kept.append(text[i])
+        i += 1
+    return "".join(kept)

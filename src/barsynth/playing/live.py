@@ -29,6 +29,9 @@ from ..errors import BarsynthError
 
 __all__ = ["RingBuffer", "Renderer"]
 
+POLL_S = 0.001
+"""How often the synthesis thread looks for room in the ring when it is full (s)."""
+
 
 class RingBuffer:
     """A single-producer, single-consumer ring of float32 samples (``capacity`` a power of two).
@@ -114,7 +117,6 @@ class Renderer(threading.Thread):
             raise ValueError("the ring buffer is smaller than the lead")
         self.events: queue.SimpleQueue = queue.SimpleQueue()
         self._buffer = np.empty(self.block)
-        self._wake = threading.Event()
         self._stopping = threading.Event()
         self.blocks = 0
         self.late = 0
@@ -162,8 +164,9 @@ class Renderer(threading.Thread):
                 self.ring.write(self._buffer)
                 self.blocks += 1
             else:
-                self._wake.wait(timeout=0.001)  # the callback's next read makes room
-                self._wake.clear()
+                # Poll: the callback's next read makes room. (It is not woken by the callback: setting
+                # a threading.Event takes a lock, which an audio callback must never do.)
+                self._stopping.wait(POLL_S)
 
     def _render(self) -> None:
         """The next block into the buffer. A note the model cannot reach is refused when its sample
@@ -181,11 +184,6 @@ class Renderer(threading.Thread):
         except BarsynthError as error:  # a note the model cannot reach: refused, the thread plays on
             self.refusals.put(str(error))
 
-    def consumed(self) -> None:
-        """Called by the audio callback after a read: room was made (a cheap, lock-free set)."""
-        self._wake.set()
-
     def stop(self) -> None:
         self._stopping.set()
-        self._wake.set()
         self.join(timeout=5.0)

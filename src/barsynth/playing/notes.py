@@ -17,6 +17,7 @@ and which parameter each excitation's velocity drives, through the curve
 from __future__ import annotations
 
 import math
+import numbers
 from types import SimpleNamespace
 from typing import Any
 
@@ -46,8 +47,8 @@ def velocity_fraction(velocity: Any) -> float:
     """A MIDI velocity (a whole number 0-127) or a fraction (a float 0-1) as a fraction 0-1."""
     if isinstance(velocity, bool):
         raise ParameterError(f"parameter velocity = {velocity} is not allowed; allowed: 0 to 127 or 0.0 to 1.0")
-    if isinstance(velocity, int):
-        return check_number("velocity", velocity, "", minimum=0, maximum=127) / 127.0
+    if isinstance(velocity, numbers.Integral):  # (NumPy's integers too)
+        return check_number("velocity", int(velocity), "", minimum=0, maximum=127) / 127.0
     return check_number("velocity", velocity, "", minimum=0.0, maximum=1.0)
 
 

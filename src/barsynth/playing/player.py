@@ -166,7 +166,6 @@ def play(instrument: Any, *, sample_rate: float, device: Any = None, block: int 
 
     def callback(outdata, frames, time_info, status):  # PortAudio's thread: copy out, nothing else
         ring.read_into(outdata[:, 0])
-        renderer.consumed()
 
     stream = open_stream(callback, sample_rate=sample_rate, block=block, device=device)
     if midi_in is not None:
