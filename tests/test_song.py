@@ -124,3 +124,28 @@ def test_notes_a_model_cannot_reach_are_left_out_with_one_warning(tmp_path):
     assert "length_m" in warnings[0] and "2 notes)" in result.stdout
     x, rate = soundfile.read(str(out))
     assert abs(peak_hz(x[int(1.5 * rate):int(2.0 * rate)], 60, 120) - 110.0) < 3.0  # key 45 at 1.5 s (A2)
+
+
+def test_one_channels_pedal_does_not_hold_another_channels_notes(tmp_path):
+    """Both channels on the default map (the same model and preset): channel 1 holds its pedal
+    down over its A3, channel 2's released A4 on the vibraphone (1 : 4 modes, so A3 has nothing
+    at 440 Hz) is still damped."""
+    midi = mido.MidiFile(ticks_per_beat=480)
+    track = mido.MidiTrack()
+    midi.tracks.append(track)
+    track.append(mido.Message("control_change", channel=0, control=64, value=127, time=0))
+    track.append(mido.Message("note_on", channel=0, note=57, velocity=100, time=0))
+    track.append(mido.Message("note_on", channel=1, note=69, velocity=100, time=0))
+    track.append(mido.Message("note_off", channel=1, note=69, time=240))
+    track.append(mido.Message("note_off", channel=0, note=57, time=0))
+    track.append(mido.MetaMessage("end_of_track", time=960))
+    path = tmp_path / "two.mid"
+    midi.save(path)
+    x = render_song(read_midi(path), load_map(None, model="banded", preset="vibraphone"), sample_rate=48000)
+
+    def at_440(start_s):
+        part = x[int(start_s * 48000):int((start_s + 0.1) * 48000)]
+        spectrum = np.abs(np.fft.rfft(part * np.hanning(part.size)))
+        f = np.fft.rfftfreq(part.size, 1 / 48000)
+        return spectrum[np.argmin(np.abs(f - 440.0))]
+    assert at_440(0.6) < 0.01 * at_440(0.1)

@@ -1,12 +1,13 @@
-"""A MIDI song rendered offline: an :class:`~.instrument.Instrument` per model the map assigns,
-every event at its sample (spec 10.3; :mod:`barsynth.midi` reads the file and the map).
+"""A MIDI song rendered offline: an :class:`~.instrument.Instrument` per channel and model the map
+assigns, every event at its sample (spec 10.3; :mod:`barsynth.midi` reads the file and the map).
 
-A note plays on the instrument its channel's assignment names (the program in force when it
-starts); its note off goes to the same instrument; a control change goes to every instrument
-its channel has played on, and an instrument's first note on a channel brings it the channel's
-controls so far (a sustain pedal put down before the first note holds it). After the song's end
-the tails ring until every instrument is ``TAIL_DB`` below the loudest block heard, at most
-``MAX_TAIL_S``.
+A note plays on its channel's instrument for the assignment in force when it starts (the
+channel's, or its program's); its note off goes to the same instrument. Channels never share an
+instrument, so one channel's pedal and note offs touch only its own notes. A control change goes
+to every instrument its channel has played on, and an instrument's first note brings it the
+channel's controls so far (a sustain pedal put down before the first note holds it). After the
+song's end the tails ring until every instrument is ``TAIL_DB`` below the loudest block heard,
+at most ``MAX_TAIL_S``.
 """
 
 from __future__ import annotations
@@ -76,12 +77,13 @@ def _route(event: Any, at: int, channel_map: Any, instruments: dict, playing: di
         assignment = channel_map.assignment(event.channel, event.program)
         if assignment is None:
             return
-        instrument = instruments.get(assignment)
+        key = (event.channel, assignment)  # an instrument per channel: one channel's pedal holds only its notes
+        instrument = instruments.get(key)
         if instrument is None:
             from ..models import get_model
 
             model = get_model(assignment.model)
-            instrument = instruments[assignment] = Instrument(
+            instrument = instruments[key] = Instrument(
                 model, voices, parameters=model.table.as_dict(assignment.parameters), sample_rate=sample_rate)
         on_channel = by_channel.setdefault(event.channel, set())
         if id(instrument) not in on_channel:  # the channel's controls so far (a pedal put down before any note)
