@@ -103,9 +103,16 @@ class Instrument:
 
     # -- events ----------------------------------------------------------------------------
     def note_on(self, pitch: Any = None, velocity: Any = 100, *, frequency_hz: Any = None, at: int = 0) -> None:
-        """A note ``at`` samples into the next process call. What it sets (the model's note map
-        from the instrument's own settings) is worked out now, so a note the model cannot
-        reach is refused here, in one line, and a note played again costs nothing more."""
+        """A note ``at`` samples into the next process call. What it sets is worked out now
+        (:meth:`note_settings`), so a note the model cannot reach is refused here, in one line."""
+        self._queue("on", at, *self.note_settings(pitch, velocity, frequency_hz=frequency_hz))
+
+    def note_settings(self, pitch: Any = None, velocity: Any = 100, *,
+                      frequency_hz: Any = None) -> tuple[float, dict[str, Any]]:
+        """A note's frequency (Hz) and the parameter changes it plays with (the model's note map
+        from the instrument's own settings), or one line if the model cannot reach it. The pitch's
+        setting is kept per frequency, so the note played again, at any velocity, costs no search
+        (a caller may work it out ahead, off its audio thread: nothing else changes)."""
         hz, fraction = note_hz(pitch, frequency_hz=frequency_hz), velocity_fraction(velocity)
         changes = note_settings(self.model, self._settings, hz, fraction, sample_rate=self.sample_rate,
                                 pitch_value=self._pitches.get(hz))
@@ -113,7 +120,7 @@ class Instrument:
             if len(self._pitches) >= NOTES_KEPT:
                 self._pitches.clear()
             self._pitches[hz] = changes[self._pitch_parameter]
-        self._queue("on", at, hz, changes)
+        return hz, changes
 
     def note_off(self, pitch: Any = None, *, frequency_hz: Any = None, at: int = 0) -> None:
         self._queue("off", at, note_hz(pitch, frequency_hz=frequency_hz))

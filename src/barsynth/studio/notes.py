@@ -32,7 +32,7 @@ import numpy as np
 from ..checks import number_within, show_value
 from ..errors import BarsynthError, ParameterError
 from ..playing.instrument import Instrument
-from ..playing.notes import note_hz, note_map, note_settings, pitch_of, velocity_fraction
+from ..playing.notes import note_map, pitch_of
 
 VOICES = 8
 NOTE_HEADROOM_DBFS = -12.0
@@ -102,11 +102,12 @@ class Notes:
         what it needs; changes nothing (safe beside :meth:`process` in another thread)."""
         midi = check_pitch(pitch)
         strength = check_midi("velocity", velocity, 1)
-        hz = note_hz(midi)
-        note_settings(self.model, settings, hz, velocity_fraction(strength), sample_rate=self.sample_rate)
         built = None
         if self.instrument is None or self.settings is not settings:
             built = self._build(settings)
+        # The note's settings worked out (and kept) by the Instrument that will play it: its
+        # note_on then finds them, and does no pitch search under the stream's lock.
+        (built or self.instrument).note_settings(midi, strength)
         gain = self._probe_gain(settings, base_gain) if self.gain is None else None
         return PlannedNote(midi, strength, built, settings, gain)
 
