@@ -27,6 +27,7 @@ from .checks import show_text
 from .errors import BarsynthError, ParameterError
 from .extras import require
 
+
 INTERRUPTED_STATUS = 130  # 128 + SIGINT, as shells report a process that Ctrl-C stopped
 BROKEN_PIPE_STATUS = 141  # 128 + SIGPIPE, as shells report a process whose reader went away
 
@@ -905,11 +906,9 @@ def midi(song_path, model_name, preset, map_path, sample_rate, voices, subtype, 
         _warn(f"{len(refused)} note{'s' if len(refused) > 1 else ''} left out (keys {keys[0]}-{keys[-1]}, channel"
               f"{'s' if len(channels) > 1 else ''} {', '.join(map(str, channels))}), the model cannot reach them; "
               f"the first, at {float(first.time):.3f} s: {reason}")
-    import numpy as np
+    from .models.rendering import normalize_peak
 
-    peak = float(np.max(np.abs(samples))) if samples.size else 0.0
-    if peak > 0.0:
-        samples = samples * (10 ** (-1.0 / 20.0) / peak)  # -1 dBFS, as render does
+    samples = normalize_peak(samples)  # -1 dBFS, as render does
     _write_all([(output, lambda tmp: write_audio(tmp, samples, rate, fmt=fmt, subtype=file_subtype))])
     click.echo(f"wrote {output} ({samples.size / rate:.2f} s at {rate:g} Hz, {len(song.notes()) - len(refused)} notes)")
 
@@ -1470,13 +1469,7 @@ def listen_serve(config, results, host, port):
 @click.option("--holm", "holm_correction", is_flag=True, help="Holm-correct the pairwise p-values.")
 def listen_report(results, csv_dir, plot_path, holm_correction):
     """Per-clip statistics, pairwise rank-sum marks and A/B identification rates."""
-    from .listening.report import (
-        CSV_NAMES,
-        box_plot,
-        csv_tables,
-        report_text,
-        write_table,
-    )
+    from .listening.report import CSV_NAMES, box_plot, csv_tables, report_text, write_table
     from .listening.store import open_existing
 
     if plot_path is not None:
