@@ -236,11 +236,7 @@ class JackServer:
         Make it before any recorder or sounddevice stream (see ``docs/jack-notes.md``)."""
         import rtmidi
 
-        self._check_no_python_callbacks()
-        made = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name=name)
-        made.open_virtual_port(port)
-        self._clients.append(made)
-        return made
+        return self._midi_port(rtmidi.MidiOut, name, port)
 
     def midi_in(self, name: str, port: str = "in"):
         """A python-rtmidi ``MidiIn`` on JACK with a virtual port ``name:port`` (closed at teardown).
@@ -248,8 +244,13 @@ class JackServer:
         Make it before any recorder or sounddevice stream (see ``docs/jack-notes.md``)."""
         import rtmidi
 
+        return self._midi_port(rtmidi.MidiIn, name, port)
+
+    def _midi_port(self, kind, name: str, port: str):
+        import rtmidi
+
         self._check_no_python_callbacks()
-        made = rtmidi.MidiIn(rtmidi.API_UNIX_JACK, name=name)
+        made = kind(rtmidi.API_UNIX_JACK, name=name)
         made.open_virtual_port(port)
         self._clients.append(made)
         return made
@@ -415,17 +416,23 @@ def start_jack_server(log_path: Path, sample_rate: int = SAMPLE_RATE, block_fram
     return server
 
 
+def stop_process(process: subprocess.Popen, timeout_s: float) -> None:
+    """Stop ``process`` with SIGTERM (so that it closes its JACK clients), and SIGKILL only if it
+    has not ended within ``timeout_s``."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGTERM)
+        try:
+            process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
 def stop_jack_server(server: JackServer) -> None:
     """Close the fixture's clients, stop jackd by PID (SIGTERM, then SIGKILL) and remove its /dev/shm files."""
     server.close_clients()
     process = server.process
-    if process.poll() is None:
-        process.send_signal(signal.SIGTERM)
-        try:
-            process.wait(STOP_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+    stop_process(process, STOP_TIMEOUT_S)
     server._log.close()
     leftovers = _server_files(server.name)
     if process.returncode != 0:  # killed: its shared memory segments stay behind

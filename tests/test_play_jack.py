@@ -20,7 +20,7 @@ import termios
 import numpy as np
 import pytest
 import sounddevice  # noqa: F401  (before the fixture starts jackd: it re-initialises PortAudio)
-from jack_server import BLOCK_FRAMES, SAMPLE_RATE
+from jack_server import BLOCK_FRAMES, SAMPLE_RATE, stop_process
 from test_jack_infrastructure import PORTAUDIO_OUT, peak_frequency_hz
 
 NOTES = (69, 76, 64)  # A4, E5, E4
@@ -81,13 +81,7 @@ def stop(player: subprocess.Popen) -> None:
     """After a failure: SIGTERM, so that the player closes its clients (a killed one leaves a dead
     client, which stalls the synchronous server for ten times its client timeout); SIGKILL only
     if that does not work."""
-    if player.poll() is None:
-        player.send_signal(signal.SIGTERM)
-        try:
-            player.wait(GUARD_S)
-        except subprocess.TimeoutExpired:
-            player.kill()
-            player.wait()
+    stop_process(player, GUARD_S)
 
 
 def rise(x: np.ndarray, frame: int, until: int) -> int:
