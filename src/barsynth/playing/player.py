@@ -30,7 +30,6 @@ import numpy as np
 from ..errors import BarsynthError
 from .live import Renderer, RingBuffer
 
-MIDI_APIS = ("default", "jack", "alsa")
 CLIENT_NAME = "barsynth"
 """The MIDI client's name when it connects to an existing port."""
 END_TAIL_S = 0.5

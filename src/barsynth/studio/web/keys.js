@@ -16,7 +16,7 @@
 // window.studio.keys: {enabled, base, held: [pitches], notesSent, midi: {state: "absent" |
 // "off" | "asking" | "refused" | "ready", inputs: [names], messages}}.
 
-import { $, element, studio } from "./page.js";
+import { $, element, studio, typing } from "./page.js";
 import { sendNote } from "./live.js";
 
 const LOWER = ["KeyZ", "KeyS", "KeyX", "KeyD", "KeyC", "KeyV", "KeyG", "KeyB", "KeyH", "KeyN", "KeyJ", "KeyM"];
@@ -96,18 +96,11 @@ function setEnabled(on) {
   if (!on) releaseAll("key:");
 }
 
-// Keys are ignored while the focus is in a box, a list or a slider (they are typing or moving it).
-function focusedInField(event) {
-  const target = event.target;
-  const tag = target.tagName;
-  if (target.isContentEditable || tag === "TEXTAREA" || tag === "SELECT") return true;
-  return tag === "INPUT" && !["checkbox", "button", "radio", "file"].includes(target.type);
-}
-
 // The computer keyboard; returns whether the key was the keyboard's (the page's shortcuts then
 // leave it alone).
 export function keyDown(event) {
-  if (event.ctrlKey || event.metaKey || event.altKey || focusedInField(event)) return false;
+  // A box, a list or a focused slider keeps its keys.
+  if (event.ctrlKey || event.metaKey || event.altKey || typing(event, { sliders: true })) return false;
   if (event.code === "KeyK") {
     if (!event.repeat) setEnabled(!keys.enabled);
     return true;

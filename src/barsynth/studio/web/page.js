@@ -100,12 +100,14 @@ export function failed(err) {
   showMessage(err instanceof ApiError ? err.message : `Something went wrong: ${err.message || err}`);
 }
 
-// Whether a key press is typing into a box (keys then are text, not commands).
-export function typing(event) {
+// Whether a key press is typing into a box (keys then are text, not commands); with sliders,
+// moving a focused slider counts too (the note keys leave a slider its arrows and letters).
+export function typing(event, { sliders = false } = {}) {
   const target = event.target;
   const tag = target.tagName;
-  return tag === "TEXTAREA" || tag === "SELECT" ||
-    (tag === "INPUT" && !["range", "checkbox", "button", "radio", "file"].includes(target.type));
+  if (target.isContentEditable || tag === "TEXTAREA" || tag === "SELECT") return true;
+  return tag === "INPUT" && (sliders || target.type !== "range") &&
+    !["checkbox", "button", "radio", "file"].includes(target.type);
 }
 
 // --- values and elements ---------------------------------------------------------------------
