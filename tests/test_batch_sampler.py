@@ -133,3 +133,25 @@ def test_a_model_that_refuses_everything_drawn_is_refused_in_one_line():
     with pytest.raises(ParameterError) as info:
         valid_draws(model, 1, 1, names=["overhang_m"], ranges={"overhang_m": (0.9, 0.95)}, max_attempts=5)
     assert "\n" not in str(info.value) and "5 random settings" in str(info.value) and "overhang_m" in str(info.value)
+
+
+@pytest.mark.parametrize("name", [name for name in MODELS if get_model(name).constraints])
+def test_declared_constraints_are_never_stricter_than_the_model(name):
+    """Every draw a declared constraint refuses (of 300 random ones) the model refuses too, in one
+    line; and the constraints do refuse some (else they are dead words)."""
+    model = get_model(name)
+    rng = np.random.default_rng(5)
+    refused = 0
+    for _ in range(300):
+        values = draw_settings(model, rng)
+        resolved = model.resolve(values)
+        broken = [c for c in model.constraints if not c.holds(resolved, RATE)]
+        if not broken:
+            continue
+        refused += 1
+        with pytest.raises(ParameterError) as info:
+            broken[0](resolved, RATE)
+        assert "\n" not in str(info.value) and broken[0].reads[0] in str(info.value)
+        with pytest.raises(ParameterError):
+            model.voice(values, sample_rate=RATE)
+    assert refused > 100
