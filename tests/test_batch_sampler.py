@@ -16,8 +16,9 @@ MODELS = model_names()
 RATE = 48000
 FIXED = {"fd": {"points": 30, "oversampling": 2}}
 """Kept fixed, for speed only: the finite-difference bar's cost grows with its grid."""
-COUNT = {"allpass": 3}
-"""Items per model in the render test (the all-pass bar fits its filters anew for each: 0.1-0.4 s)."""
+COUNT = {"allpass": 3, "ruler": 3}
+"""Items per model in the render test (the all-pass bar fits its filters anew for each, 0.1-0.4 s;
+a ruler designs its grid and statics, about 0.75 s)."""
 
 
 @pytest.mark.parametrize("name", MODELS)

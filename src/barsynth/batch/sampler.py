@@ -25,7 +25,7 @@ import numpy as np
 
 from ..checks import show_value
 from ..errors import ParameterError, SamplesError
-from ..parameters import BOOL, CHOICE, FLOATS, INT, Parameter
+from ..parameters import BOOL, CHOICE, FLOATS, Parameter
 
 MAX_ATTEMPTS = 1000
 """Draws tried for one item before giving up (a ruler drawn over its whole table is refused
@@ -63,7 +63,7 @@ def draw_settings(model: Any, rng: np.random.Generator, *, base: Any = None,
     table = model.table
     start = model.resolve(base) if base is not None else table.resolve()
     rows = drawable(table)
-    chosen = set(p.name for p in rows) if names is None else {table[n].name for n in names}
+    chosen = {p.name for p in rows} if names is None else {table[n].name for n in names}
     if spread is not None and not isinstance(spread, Mapping):
         spread = {name: float(spread) for name in chosen}
     changes: dict[str, Any] = {}
