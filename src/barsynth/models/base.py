@@ -280,6 +280,10 @@ class Model:
     note_maps: ClassVar[tuple[NoteMap, ...]] = ()
     """What a note's pitch moves, its velocity drives and MIDI controls move (declared next to
     the table, :mod:`barsynth.models.notemap`); the first whose ``when`` holds is used."""
+    constraints: ClassVar[tuple[Any, ...]] = ()
+    """Joint constraints on settings each in range (:class:`~barsynth.models.constraints.Constraint`,
+    declared next to the table): cheap predicates random draws are filtered by before a voice is
+    designed; the model's own checks stay authoritative."""
 
     def __init__(self) -> None:
         self._check_exciters()

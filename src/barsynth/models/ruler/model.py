@@ -12,7 +12,7 @@ from ...errors import ParameterError
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
 from .design import EDGE_LENGTH_M, MIN_NODES_BEYOND, Setup, decay_rate, desk_modes_for
-from .table import NOTES, RULER_TABLE, RulerParams
+from .table import CONSTRAINTS, NOTES, RULER_TABLE, RulerParams
 from .voice import EngineVoice
 
 MAX_TIP_FRACTION = 0.3
@@ -113,6 +113,7 @@ class RulerModel(Model):
     summary = "physical twang: a finite-difference ruler clamped by a finger, slapping on a desk (spec 9)"
     table = RULER_TABLE
     note_maps = NOTES
+    constraints = CONSTRAINTS
     voice_class = RulerVoice
 
     def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:

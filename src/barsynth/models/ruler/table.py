@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...parameters import CHOICE, INT, Parameter, ParameterTable, Sets
+from ..constraints import Constraint
 from ..notemap import NoteMap, VelocityCurve
 from ..rows import level_parameter, resized_bar_parameters
 from .desk import DESK_NAMES, DESKS
@@ -106,3 +107,12 @@ RULER_TABLE = ParameterTable(
 NOTES = (NoteMap("overhang_m", "length", "short cantilever",
                  {None: VelocityCurve("tip_displacement_mm", 0.02, 0.25, 1.0, per="overhang_m", factor=1000.0)}),)
 """A note moves the overhang (finger distance kept); velocity bends the tip by 2-25 % of the overhang."""
+
+CONSTRAINTS = (
+    Constraint(("overhang_m", "length_m"), "overhang_m less than length_m",
+               lambda p, rate: p.overhang_m < p.length_m),
+    Constraint(("finger_distance_m", "length_m", "overhang_m"), "finger_distance_m less than length_m - overhang_m "
+               "(the finger on the ruler)", lambda p, rate: p.finger_distance_m < p.length_m - p.overhang_m),
+)
+"""Joint constraints (:mod:`barsynth.models.constraints`): the two of :func:`~.model.ruler_setup`'s
+geometry checks that need no design (the grid-cell and rest checks need the grid and statics)."""

@@ -1,0 +1,1 @@
+"""Batch rendering: many settings of one model, deterministic per item (spec 11)."""
