@@ -45,6 +45,7 @@ FIXED_COLUMNS = ("id", "file", "sha256", "seed", "duration_s", "f0_hz", "t60_s",
 SUBTYPE = "PCM_24"
 SAVE_EVERY_S = 2.0  # the manifest is rewritten at most this often while items finish (and at the end)
 _FORMATS = {"wav": "WAV", "flac": "FLAC"}
+_MEASURED = ("sha256", "duration_s", "f0_hz", "t60_s", "centroid_hz", "error")  # known only once rendered
 
 
 def item_file(spec: BatchSpec, index: int) -> str:
@@ -165,7 +166,7 @@ def _kept(spec: BatchSpec, items: list[Item], out: Path):
         if row is None or row.get("error"):
             continue
         expected = _row_start(spec, item)
-        if any(row.get(k) != v for k, v in expected.items() if k not in ("sha256", "error")):
+        if any(row.get(k) != v for k, v in expected.items() if k not in _MEASURED):
             continue  # another spec's item (or another file name)
         if row.get("sha256") and file_sha256(out / row["file"]) == row["sha256"]:
             yield item, row

@@ -15,7 +15,7 @@ A spec is a TOML file::
     [vary.q]
     grid = [60, 100, 200, 400] # the gridded parameters' product, in a fixed order
     [vary.gain_mapping]
-    list = ["paper", "flat"]   # item i takes value i mod 2
+    list = ["linear", "log"]  # item i takes value i mod 2
     [vary.shape]
     mutate = 0.2               # the preset's value +- 0.2 of the range (on its scale), clipped
 
