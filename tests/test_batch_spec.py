@@ -111,14 +111,11 @@ def test_a_bad_spec_is_refused_in_one_line_naming_file_key_and_value(text, words
 
 
 def test_a_list_parameter_takes_grid_or_list_only():
-    text = 'model = "kalimba"\ncount = 2\nseed = 1\n'
-    from barsynth.models import get_model
-
-    floats = [p.name for p in get_model("kalimba").table if p.kind == "floats" and not p.data]
-    if not floats:
-        pytest.skip("no list parameter on kalimba")
+    text = 'model = "banded"\ncount = 2\nseed = 1\n[vary.mode_ratios]\n'
     with pytest.raises(BatchSpecError, match="random and mutate take one number"):
-        parse_spec(text + f"[vary.{floats[0]}]\nmutate = 0.1\n", source="k.toml")
+        parse_spec(text + "mutate = 0.1\n", source="k.toml")
+    spec = parse_spec(text + "list = [[1.0, 2.76], [1.0, 3.0]]\n")
+    assert [item.parameters["mode_ratios"] for item in make_items(spec)] == [(1.0, 2.76), (1.0, 3.0)]
 
 
 def test_a_missing_file_is_one_line(tmp_path):
