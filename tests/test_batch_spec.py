@@ -281,3 +281,37 @@ def test_resume_redoes_items_of_another_spec(small_runs, tmp_path):
     assert [r["seed"] for r in rows] == [str(it.seed) for it in make_items(other)]
     assert all(r["sha256"] == file_sha256(work / r["file"]) for r in rows)
     assert read_manifest(work / MANIFEST)[0]["sha256"] != read_manifest(one / MANIFEST)[0]["sha256"]
+
+
+# -- the command --------------------------------------------------------------------------------
+
+def test_the_batch_command_writes_the_same_files_as_the_library(small_runs, tmp_path):
+    from click.testing import CliRunner
+
+    from barsynth.cli import main
+
+    spec_path = tmp_path / "small.toml"
+    spec_path.write_text(SMALL)
+    result = CliRunner().invoke(main, ["batch", str(spec_path), "-o", str(tmp_path / "out"), "--workers", "2"],
+                                catch_exceptions=False)
+    assert result.exit_code == 0 and "wrote 6 items" in result.output
+    _, one, _, _ = small_runs
+    assert _tree(tmp_path / "out") == _tree(one)
+
+
+@pytest.mark.parametrize("text, words", [
+    ('model = "twang"\ncount = 3\nseed = 1\n[vary.q]\ngrid = [1]\n', "vary.q.grid value 1 = 1"),
+    ('model = "twang"\ncount = 3\n', "no seed"),
+])
+def test_a_bad_spec_exits_2_in_one_line_and_writes_nothing(tmp_path, text, words):
+    from click.testing import CliRunner
+
+    from barsynth.cli import main
+
+    spec_path = tmp_path / "bad.toml"
+    spec_path.write_text(text)
+    result = CliRunner().invoke(main, ["batch", str(spec_path), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 2
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("barsynth: error: ") and words in lines[0]
+    assert not (tmp_path / "out").exists()
