@@ -46,6 +46,7 @@ MANIFEST = "manifest.csv"
 METADATA = "metadata.csv"
 FIXED_COLUMNS = ("id", "file", "sha256", "seed", "duration_s", "f0_hz", "t60_s", "centroid_hz", "error")
 SUBTYPE = "PCM_24"
+MAX_CHUNK = 16  # items per task of the pool (fewer round trips; at least 4 tasks per worker)
 SAVE_EVERY_S = 2.0  # the manifest is rewritten at most this often while items finish (and at the end)
 _FORMATS = {"wav": "WAV", "flac": "FLAC"}
 _MEASURED = ("sha256", "duration_s", "f0_hz", "t60_s", "centroid_hz", "error")  # known only once rendered
@@ -85,6 +86,11 @@ def render_item(spec: BatchSpec, item: Item, out_dir: str, features: bool = True
     return row
 
 
+def render_chunk(spec: BatchSpec, items: list[Item], out_dir: str, features: bool = True) -> list[dict[str, str]]:
+    """:func:`render_item` for each of ``items`` in turn (one task of the pool)."""
+    return [render_item(spec, item, out_dir, features) for item in items]
+
+
 def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool = False, features: bool = True,
               spec_text: str | None = None,
               progress: Callable[[int, int], None] | None = None) -> list[dict[str, str]]:
@@ -94,7 +100,10 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
     ``resume``: keep the items the manifest in ``out_dir`` already holds whose files are
     intact (see the module's docstring). ``features``: measure f0, T60 and centroid (the
     costly part of a short item). ``spec_text``: also written as ``DIR/spec.toml``.
-    ``progress(done, total)`` is called as items finish.
+    ``progress(done, total)`` is called as items finish (first with the items kept).
+
+    The pool's processes are spawned, so a script that calls this needs Python's usual guard,
+    ``if __name__ == "__main__":`` (``barsynth batch`` and notebooks need nothing).
     """
     out = Path(out_dir)
     (out / ITEMS_DIR).mkdir(parents=True, exist_ok=True)
@@ -123,12 +132,15 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
         if todo:
             with _single_threaded_blas(), ProcessPoolExecutor(
                     max_workers=min(workers, len(todo)), mp_context=multiprocessing.get_context("spawn")) as pool:
-                pending = {pool.submit(render_item, spec, item, str(out), features) for item in todo}
+                size = max(1, min(MAX_CHUNK, len(todo) // (4 * workers)))
+                pending = {pool.submit(render_chunk, spec, todo[i:i + size], str(out), features)
+                           for i in range(0, len(todo), size)}
                 try:
                     while pending:
                         done, pending = wait(pending, return_when=FIRST_COMPLETED)
                         for future in done:
-                            finished(future.result())
+                            for row in future.result():
+                                finished(row)
                 except BaseException:
                     for future in pending:
                         future.cancel()
