@@ -304,3 +304,35 @@ def test_a_bad_spec_exits_2_in_one_line_and_writes_nothing(tmp_path, text, words
     lines = result.output.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("barsynth: error: ") and words in lines[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_ctrl_c_stops_the_pool_and_leaves_no_partial_file(tmp_path):
+    """The command interrupted mid-batch: status 130 in one line, no temporary file, and every
+    item in the manifest has its file with its hash (what --resume trusts)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    spec_path, out = tmp_path / "many.toml", tmp_path / "out"
+    spec_path.write_text(SMALL.replace("count = 6", "count = 300"))
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    proc = subprocess.Popen([sys.executable, "-m", "barsynth", "batch", str(spec_path), "-o", str(out),
+                             "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
+                            start_new_session=True)
+    try:
+        for _ in range(1200):  # until a few chunks of items are written (at most 60 s)
+            if (out / "items").is_dir() and len(os.listdir(out / "items")) >= 50:
+                break
+            time.sleep(0.05)
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the command and its workers
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130 and err.decode().strip() == "barsynth: interrupted"
+    names = os.listdir(out / "items")
+    assert names and not [n for n in names if n.startswith(".")] and len(names) < 300
+    rows = read_manifest(out / MANIFEST)
+    assert rows and all(file_sha256(out / r["file"]) == r["sha256"] for r in rows.values())

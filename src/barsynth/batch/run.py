@@ -87,8 +87,30 @@ def render_item(spec: BatchSpec, item: Item, out_dir: str, features: bool = True
 
 
 def render_chunk(spec: BatchSpec, items: list[Item], out_dir: str, features: bool = True) -> list[dict[str, str]]:
-    """:func:`render_item` for each of ``items`` in turn (one task of the pool)."""
-    return [render_item(spec, item, out_dir, features) for item in items]
+    """:func:`render_item` for each of ``items`` in turn (one task of the pool); after a Ctrl-C
+    the worker starts no more items (a chunk already queued ends at once)."""
+    rows = []
+    for item in items:
+        if _STOPPED:
+            raise KeyboardInterrupt
+        rows.append(render_item(spec, item, out_dir, features))
+    return rows
+
+
+_STOPPED = False  # a pool worker's: a Ctrl-C has arrived
+
+
+def _worker_start() -> None:
+    """In each pool process: a Ctrl-C interrupts the item it renders (its temporary file is
+    removed) and stops it taking more."""
+    import signal
+
+    def stop(signum: int, frame: Any) -> None:
+        global _STOPPED
+        _STOPPED = True
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, stop)
 
 
 def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool = False, features: bool = True,
@@ -131,7 +153,8 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
     try:
         if todo:
             with _single_threaded_blas(), ProcessPoolExecutor(
-                    max_workers=min(workers, len(todo)), mp_context=multiprocessing.get_context("spawn")) as pool:
+                    max_workers=min(workers, len(todo)), mp_context=multiprocessing.get_context("spawn"),
+                    initializer=_worker_start) as pool:
                 size = max(1, min(MAX_CHUNK, len(todo) // (4 * workers)))
                 pending = {pool.submit(render_chunk, spec, todo[i:i + size], str(out), features)
                            for i in range(0, len(todo), size)}
@@ -142,8 +165,7 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
                             for row in future.result():
                                 finished(row)
                 except BaseException:
-                    for future in pending:
-                        future.cancel()
+                    pool.shutdown(wait=True, cancel_futures=True)
                     raise
     finally:  # (a Ctrl-C too: what is finished is in the manifest, for --resume)
         _save(spec, out, rows)
