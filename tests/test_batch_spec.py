@@ -259,6 +259,18 @@ def test_resume_redoes_only_a_deleted_or_corrupted_file(small_runs, tmp_path):
     assert "00002.wav" in after
 
 
+def test_an_item_the_model_refuses_is_a_row_with_its_reason_and_no_file(tmp_path):
+    spec = parse_spec('model = "twang"\ncount = 2\nseed = 1\nduration_s = 0.1\n'
+                      '[vary.youngs_modulus_pa]\nlist = [1e8, 3.2e9]\n[vary.length_m]\nlist = [1.0, 0.3]\n'
+                      '[vary.thickness_m]\nlist = [0.0003, 0.003]\n[vary.density_kg_m3]\nlist = [22000, 1180]\n')
+    refused, kept = run_batch(spec, tmp_path, features=False)
+    assert "below 20 Hz" in refused["error"] and refused["file"] == refused["sha256"] == ""
+    assert kept["error"] == "" and file_sha256(tmp_path / kept["file"]) == kept["sha256"]
+    assert os.listdir(tmp_path / "items") == ["00001.wav"]
+    with open(tmp_path / METADATA, newline="") as f:
+        assert [m["file_name"] for m in csv.DictReader(f)] == ["items/00001.wav"]
+
+
 def test_resume_redoes_items_of_another_spec(small_runs, tmp_path):
     spec, one, _, _ = small_runs
     other = parse_spec(SMALL.replace("seed = 3", "seed = 4"), source="other.toml")

@@ -60,7 +60,7 @@ def item_file(spec: BatchSpec, index: int) -> str:
 def render_item(spec: BatchSpec, item: Item, out_dir: str, features: bool = True) -> dict[str, str]:
     """Render ``item``, write its file atomically under ``out_dir`` and return its manifest row
     (every value as text). Settings the model refuses (or whose samples blow up) give a row
-    with ``error`` set and no file."""
+    with ``error`` set and no file (``file`` empty)."""
     import soundfile
 
     from ..models import get_model
@@ -73,7 +73,7 @@ def render_item(spec: BatchSpec, item: Item, out_dir: str, features: bool = True
             samples = model.render(model.resolve(item.parameters), duration_s=spec.duration_s,
                                    sample_rate=spec.sample_rate, seed=item.seed)
     except BarsynthError as exc:
-        row["error"] = str(exc)
+        row.update(file="", error=str(exc))
         return row
     buffer = io.BytesIO()
     soundfile.write(buffer, samples, int(spec.sample_rate), format=_FORMATS[spec.format], subtype=SUBTYPE)
