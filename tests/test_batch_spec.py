@@ -12,7 +12,13 @@ import numpy as np
 import pytest
 import soundfile
 
-from barsynth.batch.items import _combination, _product_order, item_seed, make_item, make_items
+from barsynth.batch.items import (
+    _combination,
+    _product_order,
+    item_seed,
+    make_item,
+    make_items,
+)
 from barsynth.batch.run import MANIFEST, METADATA, file_sha256, read_manifest, run_batch
 from barsynth.batch.spec import load_spec, parse_spec
 from barsynth.errors import BarsynthError, BatchSpecError
@@ -208,9 +214,9 @@ def small_runs(tmp_path_factory):
 
 
 def test_one_and_two_workers_write_byte_identical_files_and_manifests(small_runs):
-    spec, one, two, rows = small_runs
+    _, one, two, _ = small_runs
     a, b = _tree(one), _tree(two)
-    assert sorted(a) == ["items/0000%d.wav" % i for i in range(6)] + [MANIFEST, METADATA, "spec.toml"]
+    assert sorted(a) == [f"items/0000{i}.wav" for i in range(6)] + [MANIFEST, METADATA, "spec.toml"]
     assert a == b
     assert not [name for name in os.listdir(one / "items") if name.startswith(".")]  # no temporary left
 
@@ -272,7 +278,7 @@ def test_an_item_the_model_refuses_is_a_row_with_its_reason_and_no_file(tmp_path
 
 
 def test_resume_redoes_items_of_another_spec(small_runs, tmp_path):
-    spec, one, _, _ = small_runs
+    _, one, _, _ = small_runs
     other = parse_spec(SMALL.replace("seed = 3", "seed = 4"), source="other.toml")
     work = tmp_path / "w"
     for name, data in _tree(one).items():

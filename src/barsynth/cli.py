@@ -1514,8 +1514,8 @@ def listen_report(results, csv_dir, plot_path, holm_correction):
 @click.argument("spec_path", metavar="SPEC.toml", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "out_dir", required=True, metavar="DIR", type=click.Path(path_type=Path),
               help="Folder for items/, manifest.csv, metadata.csv and spec.toml (made if missing).")
-@click.option("--workers", default=1, show_default=True, type=_Whole(1, 1024), metavar="N",
-              help="Local processes rendering items at once.")
+@click.option("--workers", default=None, type=_Whole(1, 1024), metavar="N",
+              help="Local processes rendering items at once (default: one per core).")
 @click.option("--resume", is_flag=True, help="Keep finished items whose files match the manifest's hash.")
 def batch(spec_path, out_dir, workers, resume):
     """Render a batch of variations: one audio file per item and a manifest.
@@ -1541,7 +1541,7 @@ def batch(spec_path, out_dir, workers, resume):
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise BarsynthError(f"could not create {show_text(out_dir)}: {exc.strerror or exc}") from None
-    rows = run_batch(spec, out_dir, workers=workers, resume=resume, spec_text=text)
+    rows = run_batch(spec, out_dir, workers=workers or os.cpu_count() or 1, resume=resume, spec_text=text)
     refused = sum(1 for row in rows if row["error"])
     click.echo(f"wrote {len(rows) - refused} items to {out_dir}" + (f" ({refused} refused: see manifest.csv)"
                                                                    if refused else ""))

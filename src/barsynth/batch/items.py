@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import BatchSpecError
+from ..errors import BarsynthError, BatchSpecError
 from ..parameters import BOOL, CHOICE, INT, Parameter
 from .spec import BatchSpec, Variation
 
@@ -117,7 +117,7 @@ def make_item(spec: BatchSpec, index: int, *, base: Any = None) -> Item:
                                                 getattr(base, variation.name), rng)
     try:
         record = table.resolve(table.as_dict(base), values)
-    except Exception as exc:  # e.g. a material and its Young's modulus both varied
+    except BarsynthError as exc:  # e.g. a material and its Young's modulus both varied
         raise BatchSpecError(f"{spec.source}: item {index}: {exc}") from None
     return Item(index=index, seed=item_seed(spec.seed, index), values=values, parameters=table.as_dict(record))
 
