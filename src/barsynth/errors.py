@@ -41,3 +41,8 @@ class MidiMapError(BarsynthError, ValueError):
 
 class SamplesError(BarsynthError, ValueError):
     """Settings for which a model gives non-finite or exploding samples (never played or written)."""
+
+
+class BatchSpecError(BarsynthError, ValueError):
+    """A batch spec (TOML) is unreadable, or names an unknown key, model, preset or parameter, or a
+    variation outside what the parameter's table allows."""
