@@ -38,7 +38,7 @@ def test_the_extras_hold_the_web_stack_and_matplotlib_and_test_pulls_them_in():
     assert any(re.fullmatch(r"barsynth\[(.*,)?plot(,.*)?\]", r) for r in extras["test"])
 
 
-DISTRIBUTIONS = {"rtmidi": "python-rtmidi"}
+DISTRIBUTIONS = {"rtmidi": "python-rtmidi", "distributed": "dask"}  # (dask[distributed] brings distributed)
 """Modules imported under another name than their PyPI package's (IPython is ipython: case only)."""
 
 

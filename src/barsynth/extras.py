@@ -9,12 +9,14 @@ soundfile, click). Extras add the rest:
   the listening-test server ``barsynth listen serve``;
 * ``notebook`` (IPython): hearing sounds in Jupyter (:mod:`barsynth.notebook`);
 * ``play`` (sounddevice, python-rtmidi): live audio and MIDI input of ``barsynth play``
-  (sounddevice also needs the system's PortAudio library, Debian's ``libportaudio2``).
+  (sounddevice also needs the system's PortAudio library, Debian's ``libportaudio2``);
+* ``batch`` (pyarrow, rich, dask.distributed): ``barsynth batch``'s Parquet manifest, its
+  progress with an ETA and its runs on a Dask cluster.
 
 ``pip install 'barsynth[plot,studio]'`` installs two of them, ``'barsynth[all]'`` all.
 
 >>> sorted(EXTRAS)
-['notebook', 'play', 'plot', 'studio']
+['batch', 'notebook', 'play', 'plot', 'studio']
 """
 
 from __future__ import annotations
@@ -31,9 +33,11 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "studio": ("fastapi", "uvicorn", "websockets"),
     "notebook": ("IPython",),
     "play": ("sounddevice", "rtmidi"),
+    "batch": ("pyarrow", "rich", "distributed"),
 }
 _WHAT = {"plot": "matplotlib", "studio": "the web stack (fastapi, uvicorn, websockets)", "notebook": "IPython",
-         "play": "live audio and MIDI (sounddevice, python-rtmidi)"}
+         "play": "live audio and MIDI (sounddevice, python-rtmidi)",
+         "batch": "the batch stack (pyarrow, rich, dask.distributed)"}
 _SYSTEM = {"sounddevice": " (PortAudio; on Debian: apt-get install libportaudio2)"}
 
 
