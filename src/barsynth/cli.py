@@ -1510,7 +1510,10 @@ def listen_report(results, csv_dir, plot_path, holm_correction):
 @click.option("--workers", default=None, type=_Whole(1, 1024), metavar="N",
               help="Local processes rendering items at once (default: one per core).")
 @click.option("--resume", is_flag=True, help="Keep finished items whose files match the manifest's hash.")
-def batch(spec_path, out_dir, workers, resume):
+@click.option("--dask-scheduler", "scheduler", default=None, metavar="ADDRESS",
+              help="Render on the Dask cluster of this scheduler (tcp://HOST:PORT) instead of local processes; "
+                   "DIR must be shared with its workers (e.g. NFS). Not with --workers.")
+def batch(spec_path, out_dir, workers, resume, scheduler):
     """Render a batch of variations: one audio file per item and a manifest.
 
     The spec (TOML) names a model, a preset, a count, a seed and how each varied parameter
@@ -1521,20 +1524,34 @@ def batch(spec_path, out_dir, workers, resume):
     Examples:
       barsynth batch twangs.toml -o twangs --workers 2
       barsynth batch twangs.toml -o twangs --resume
+      barsynth batch twangs.toml -o /nfs/twangs --dask-scheduler tcp://10.0.0.5:8786
     """
     from .batch.run import run_batch
     from .batch.spec import load_spec
 
     spec = load_spec(spec_path)
     text = spec_path.read_text(encoding="utf-8")
+    if scheduler is not None and workers is not None:
+        raise ParameterError(f"parameter workers = {workers} is not allowed with --dask-scheduler; allowed: one of "
+                             "them (the cluster's workers render)")
     if out_dir.exists() and not out_dir.is_dir():
         raise ParameterError(f"parameter output = {show_text(out_dir)} is not a folder; allowed: a folder, "
                              "made if missing")
+    client = None
+    if scheduler is not None:  # (before anything is written)
+        from .batch.cluster import connect
+
+        client = connect(scheduler)
     try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise BarsynthError(f"could not create {show_text(out_dir)}: {exc.strerror or exc}") from None
-    rows = run_batch(spec, out_dir, workers=workers or os.cpu_count() or 1, resume=resume, spec_text=text)
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise BarsynthError(f"could not create {show_text(out_dir)}: {exc.strerror or exc}") from None
+        rows = run_batch(spec, out_dir, workers=workers or os.cpu_count() or 1, resume=resume, spec_text=text,
+                         scheduler=client)
+    finally:
+        if client is not None:
+            client.close()
     refused = sum(1 for row in rows if row["error"])
     click.echo(f"wrote {len(rows) - refused} items to {out_dir}" + (f" ({refused} refused: see manifest.csv)"
                                                                    if refused else ""))

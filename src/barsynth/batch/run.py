@@ -49,6 +49,7 @@ SUBTYPE = "PCM_24"
 MAX_CHUNK = 16  # items per task of the pool (fewer round trips; at least 4 tasks per worker)
 SAVE_EVERY_S = 2.0  # the manifest is rewritten at most this often while items finish (and at the end)
 _FORMATS = {"wav": "WAV", "flac": "FLAC"}
+_TMP_PREFIX, _TMP_SUFFIX = ".barsynth-", ".tmp"  # a file being written (see _write_atomically)
 _MEASURED = ("sha256", "duration_s", "f0_hz", "t60_s", "centroid_hz", "error")  # known only once rendered
 
 
@@ -88,11 +89,16 @@ def render_item(spec: BatchSpec, item: Item, out_dir: str, features: bool = True
 
 def render_chunk(spec: BatchSpec, items: list[Item], out_dir: str, features: bool = True) -> list[dict[str, str]]:
     """:func:`render_item` for each of ``items`` in turn (one task of the pool); after a Ctrl-C
-    the worker starts no more items (a chunk already queued ends at once)."""
+    the worker starts no more items (a chunk already queued ends at once), nor does a Dask
+    task whose client cancelled it."""
+    from .cluster import task_cancelled
+
     rows = []
     for item in items:
         if _STOPPED:
             raise KeyboardInterrupt
+        if task_cancelled():
+            raise RuntimeError("cancelled by the client")  # (its result is never read)
         rows.append(render_item(spec, item, out_dir, features))
     return rows
 
@@ -115,9 +121,14 @@ def _worker_start() -> None:
 
 def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool = False, features: bool = True,
               spec_text: str | None = None,
-              progress: Callable[[int, int], None] | None = None) -> list[dict[str, str]]:
+              progress: Callable[[int, int], None] | None = None,
+              scheduler: Any = None) -> list[dict[str, str]]:
     """Render every item of ``spec`` into ``out_dir`` on ``workers`` local processes; return the
     manifest's rows (in item order).
+
+    ``scheduler``: a Dask scheduler's address (or a connected ``distributed.Client``) to render
+    on that cluster instead (``workers`` is then unused; ``out_dir`` must be shared with the
+    workers: :mod:`.cluster`). The files and the manifest are the same either way.
 
     ``resume``: keep the items the manifest in ``out_dir`` already holds whose files are
     intact (see the module's docstring). ``features``: measure f0, T60 and centroid (the
@@ -152,11 +163,9 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
 
     try:
         if todo:
-            with _single_threaded_blas(), ProcessPoolExecutor(
-                    max_workers=min(workers, len(todo)), mp_context=multiprocessing.get_context("spawn"),
-                    initializer=_worker_start) as pool:
-                size = max(1, min(MAX_CHUNK, len(todo) // (4 * workers)))
-                pending = {pool.submit(render_chunk, spec, todo[i:i + size], str(out), features)
+            with _pool(workers, len(todo), scheduler, out) as (pool, slots):
+                size = max(1, min(MAX_CHUNK, len(todo) // (4 * slots)))
+                pending = {pool.submit(render_chunk, spec, todo[i:i + size], str(out.absolute()), features)
                            for i in range(0, len(todo), size)}
                 try:
                     while pending:
@@ -167,9 +176,26 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
                 except BaseException:
                     pool.shutdown(wait=True, cancel_futures=True)
                     raise
+            _remove_temporaries(out / ITEMS_DIR)  # (a lost worker's)
     finally:  # (a Ctrl-C too: what is finished is in the manifest, for --resume)
         _save(spec, out, rows)
     return [rows[i] for i in sorted(rows)]
+
+
+@contextmanager
+def _pool(workers: int, count: int, scheduler: Any, out: Path) -> Iterator[tuple[Any, int]]:
+    """The executor the chunks are submitted to and how many run at once: ``workers`` local
+    processes (at most ``count``), or a Dask cluster's threads when ``scheduler`` is given."""
+    if scheduler is not None:
+        from .cluster import dask_pool
+
+        with dask_pool(scheduler, out) as pool:
+            yield pool, pool.slots
+        return
+    with _single_threaded_blas(), ProcessPoolExecutor(
+            max_workers=min(workers, count), mp_context=multiprocessing.get_context("spawn"),
+            initializer=_worker_start) as pool:
+        yield pool, workers
 
 
 @contextmanager
@@ -287,7 +313,7 @@ def _csv(columns: list[str], rows: list[dict[str, str]]) -> bytes:
 def _write_atomically(path: Path, data: bytes) -> None:
     """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``: never a
     partial file at ``path``, whatever interrupts the write."""
-    fd, tmp = tempfile.mkstemp(prefix=".barsynth-", suffix=".tmp", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX, suffix=_TMP_SUFFIX, dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -297,3 +323,10 @@ def _write_atomically(path: Path, data: bytes) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _remove_temporaries(folder: Path) -> None:
+    """Remove the temporary files :func:`_write_atomically` left in ``folder`` (a process killed
+    mid-write leaves one): our own names only."""
+    for path in folder.glob(f"{_TMP_PREFIX}*{_TMP_SUFFIX}"):
+        path.unlink(missing_ok=True)

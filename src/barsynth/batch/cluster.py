@@ -1,0 +1,153 @@
+"""A batch's items rendered on a Dask cluster (spec 11.3): ``barsynth batch --dask-scheduler ADDRESS``.
+
+The client connects to a running ``dask.distributed`` scheduler and submits the items in
+chunks, exactly as the local pool gets them (:func:`barsynth.batch.run.render_chunk`). Each
+worker renders its chunk, writes the audio files itself (atomically, as locally) and sends
+back the rows only (hash and features, never the audio); the manifest is written by the client
+alone. The output folder must therefore be **shared**: the client and every worker see it at
+the same absolute path (NFS or another shared file system); the client checks this before the
+first item and refuses with one line otherwise. Every worker needs the same barsynth version.
+
+Workers started by ``dask worker`` (with its nanny, the default) get one BLAS / OpenMP thread
+per process from Dask's ``distributed.nanny.pre-spawn-environ``, as the local pool's processes
+do: the files and the features are then byte-identical to a local run of the same spec.
+
+A worker lost mid-batch: the scheduler gives its chunks to another worker (which writes the
+same bytes again); a temporary file it left beside the audio is removed by the client at the
+end of the run. A Ctrl-C on the client cancels every future; a chunk already running stops
+before its next item.
+
+A cluster for trying this on one machine::
+
+    dask scheduler --host 127.0.0.1 --port 8786 &
+    dask worker tcp://127.0.0.1:8786 --nthreads 1 --nworkers 2 &
+    barsynth batch twangs.toml -o twangs --dask-scheduler tcp://127.0.0.1:8786
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import os
+import sys
+import uuid
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from ..checks import show_text
+from ..errors import BarsynthError
+
+__all__ = ["CONNECT_TIMEOUT_S", "DaskPool", "connect", "dask_pool", "task_cancelled"]
+
+CONNECT_TIMEOUT_S = 10.0  # how long the client tries to reach the scheduler
+
+
+def connect(address: str, timeout_s: float | None = None) -> Any:
+    """A ``distributed.Client`` connected to the scheduler at ``address`` (``tcp://HOST:PORT``).
+
+    Raises :class:`~barsynth.errors.BarsynthError` (one line, naming the address) when the
+    scheduler cannot be reached within ``timeout_s`` (default :data:`CONNECT_TIMEOUT_S`) s or
+    the address cannot be read, and when Dask is not installed.
+    """
+    try:
+        import distributed
+    except ImportError:
+        raise BarsynthError("--dask-scheduler needs dask.distributed: pip install 'barsynth[batch]'") from None
+    timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
+    try:
+        with _quiet_distributed():
+            return distributed.Client(address, timeout=timeout_s, set_as_default=False)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise BarsynthError(f"could not reach the Dask scheduler at {show_text(str(address))} "
+                            f"within {timeout_s:g} s: {show_text(reason)}") from None
+
+
+class DaskPool:
+    """The part of :class:`concurrent.futures.Executor` a batch uses, on a Dask client: every
+    :meth:`submit` is its own task (never merged with an equal one) and its future is a
+    :class:`concurrent.futures.Future` (so :func:`concurrent.futures.wait` takes it)."""
+
+    def __init__(self, client: Any) -> None:
+        self.client = client
+        self._executor = client.get_executor(pure=False)
+
+    def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> concurrent.futures.Future:
+        return self._executor.submit(fn, *args, **kwargs)
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        """``cancel_futures``: cancel every task at once (a running chunk stops before its
+        next item, :func:`task_cancelled`) and return without waiting."""
+        self._executor.shutdown(wait=wait and not cancel_futures)
+
+    @property
+    def slots(self) -> int:
+        """The cluster's worker threads (at least 1): how many chunks run at once."""
+        return max(1, sum(self.client.nthreads().values()))
+
+
+@contextmanager
+def dask_pool(scheduler: Any, out_dir: Any) -> Iterator[DaskPool]:
+    """A :class:`DaskPool` on ``scheduler`` (an address, connected here and closed after, or a
+    connected ``distributed.Client``, left open), once every worker is seen to share
+    ``out_dir``."""
+    client = connect(scheduler) if isinstance(scheduler, str) else scheduler
+    try:
+        _check_shared(client, Path(out_dir))
+        pool = DaskPool(client)
+        with _quiet_distributed():
+            yield pool
+    finally:
+        if client is not scheduler:
+            client.close()
+
+
+def task_cancelled() -> bool:
+    """True in a Dask worker's thread whose task has been cancelled (its client let go or was
+    interrupted); False everywhere else (at once where ``distributed`` is not imported)."""
+    if "distributed" not in sys.modules:
+        return False
+    from distributed import get_worker
+    from distributed.worker import thread_state
+
+    key = getattr(thread_state, "key", None)
+    if key is None:
+        return False
+    try:
+        task = get_worker().state.tasks.get(key)
+    except ValueError:  # (not in a worker)
+        return False
+    return task is None or task.state in ("cancelled", "released", "forgotten")
+
+
+def _check_shared(client: Any, out: Path) -> None:
+    """Refuse (one line) unless every worker sees a file the client just wrote in ``out``."""
+    marker = out.absolute() / f".barsynth-shared-{uuid.uuid4().hex}.tmp"
+    marker.write_bytes(b"")
+    try:
+        seen = client.run(os.path.exists, str(marker))
+    finally:
+        marker.unlink(missing_ok=True)
+    blind = sorted(worker for worker, ok in seen.items() if not ok)
+    if blind:
+        raise BarsynthError(f"the Dask worker {show_text(blind[0])} does not see the output folder "
+                            f"{show_text(str(out.absolute()))}" + (f" (nor do {len(blind) - 1} more)"
+                                                                  if len(blind) > 1 else "")
+                            + "; the folder must be shared by the client and every worker, at the same path "
+                              "(e.g. NFS)")
+
+
+@contextmanager
+def _quiet_distributed() -> Iterator[None]:
+    """Dask's client logs a warning per lost worker and a failed connection; the batch reports
+    through its own errors and progress instead."""
+    import logging
+
+    logger = logging.getLogger("distributed")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)

@@ -1,0 +1,194 @@
+"""Batches on a Dask cluster (spec 11.3): a real scheduler and two workers on loopback give the
+same files and manifest as a local run, lose nothing when a worker is killed mid-batch, and an
+unreachable scheduler is one line and nothing written."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("distributed")
+
+from barsynth.batch.run import MANIFEST, METADATA, file_sha256, read_manifest, run_batch  # noqa: E402
+from barsynth.batch.spec import parse_spec  # noqa: E402
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+SPEC = """model = "twang"
+preset = "plastic-30cm"
+count = {count}
+seed = 11
+duration_s = 0.2
+format = "flac"
+[vary.q]
+grid = [60, 200]
+[vary.length_m]
+random = [0.15, 0.4]
+[vary.shape]
+mutate = 0.2
+"""
+COUNT = 16
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """SIGTERM to the process's group (a worker's nanny and its worker), then SIGKILL."""
+    if proc.poll() is None:
+        try:
+            os.killpg(proc.pid, signal.SIGTERM)
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        except ProcessLookupError:
+            pass
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """``dask scheduler`` and two ``dask worker`` processes (one thread each) on 127.0.0.1,
+    importing this barsynth; yields a connected client."""
+    from distributed import Client
+
+    work = tmp_path_factory.mktemp("dask")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(SRC), os.environ.get("PYTHONPATH")])))
+    common = dict(env=env, cwd=work, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    procs = []
+    try:
+        scheduler_file = work / "scheduler.json"
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                       "--port", "0", "--no-dashboard", "--scheduler-file", str(scheduler_file)],
+                                      **common))
+        for _ in range(600):
+            if scheduler_file.exists() and scheduler_file.stat().st_size:
+                break
+            assert procs[0].poll() is None, "the scheduler stopped"
+            time.sleep(0.05)
+        address = json.loads(scheduler_file.read_text())["address"]
+        for i in range(2):
+            procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
+                                           "--nthreads", "1", "--nworkers", "1", "--host", "127.0.0.1",
+                                           "--no-dashboard", "--name", f"w{i}",
+                                           "--local-directory", str(work / f"w{i}")], **common))
+        client = Client(address, timeout=30, set_as_default=False)
+        client.wait_for_workers(2, timeout=60)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        for proc in reversed(procs):
+            _stop(proc)
+
+
+@pytest.fixture(scope="module")
+def local_run(tmp_path_factory):
+    """The reference: the spec rendered on one local process."""
+    out = tmp_path_factory.mktemp("local")
+    run_batch(parse_spec(SPEC.format(count=COUNT), source="b.toml"), out, workers=1)
+    return out
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_the_cluster_writes_the_local_runs_bytes(cluster, local_run, tmp_path):
+    out = tmp_path / "out"
+    rows = run_batch(parse_spec(SPEC.format(count=COUNT), source="b.toml"), out, scheduler=cluster)
+    assert len(rows) == COUNT and not any(r["error"] for r in rows)
+    assert float(rows[0]["f0_hz"]) > 20  # features measured on the workers
+    tree = _tree(out)
+    assert len([name for name in tree if name.endswith(".flac")]) == COUNT
+    assert tree == _tree(local_run)  # audio, manifest and metadata
+
+
+def test_the_address_form_connects_and_workers_render_single_threaded(cluster, local_run, tmp_path):
+    """run_batch(scheduler="tcp://...") connects itself; the workers' BLAS is single-threaded
+    as in the local pool."""
+    env = cluster.run(lambda: {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")})
+    assert all(v == {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"} for v in env.values())
+    spec = parse_spec(SPEC.format(count=4), source="b.toml")
+    out = tmp_path / "out"
+    run_batch(spec, out, scheduler=cluster.scheduler.address)
+    assert _tree(out / "items") == {k: v for k, v in _tree(local_run / "items").items() if k < "00004"}
+
+
+def test_an_unreachable_scheduler_exits_2_in_one_line_and_writes_nothing(tmp_path, monkeypatch):
+    import socket
+
+    from click.testing import CliRunner
+
+    from barsynth.batch import cluster as cluster_module
+    from barsynth.cli import main
+
+    monkeypatch.setattr(cluster_module, "CONNECT_TIMEOUT_S", 1.0)
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        address = f"tcp://127.0.0.1:{s.getsockname()[1]}"
+    spec_path = tmp_path / "b.toml"
+    spec_path.write_text(SPEC.format(count=2))
+    result = CliRunner().invoke(main, ["batch", str(spec_path), "-o", str(tmp_path / "out"),
+                                       "--dask-scheduler", address])
+    assert result.exit_code == 2
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("barsynth: error: could not reach the Dask scheduler at ")
+    assert address in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_workers_with_the_dask_scheduler_is_refused(tmp_path):
+    from click.testing import CliRunner
+
+    from barsynth.cli import main
+
+    spec_path = tmp_path / "b.toml"
+    spec_path.write_text(SPEC.format(count=2))
+    result = CliRunner().invoke(main, ["batch", str(spec_path), "-o", str(tmp_path / "out"), "--workers", "2",
+                                       "--dask-scheduler", "tcp://127.0.0.1:1"])
+    assert result.exit_code == 2 and "parameter workers = 2 is not allowed with --dask-scheduler" in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_folder_the_workers_do_not_see_is_refused(cluster, tmp_path, monkeypatch):
+    from barsynth.errors import BarsynthError
+
+    blind = {"tcp://127.0.0.1:1": False, "tcp://127.0.0.1:2": True}
+    monkeypatch.setattr(type(cluster), "run", lambda self, *a, **k: blind)
+    with pytest.raises(BarsynthError, match="does not see the output folder .* must be shared"):
+        run_batch(parse_spec(SPEC.format(count=2), source="b.toml"), tmp_path / "out", scheduler=cluster)
+    assert not list((tmp_path / "out" / "items").iterdir())
+
+
+def test_a_worker_killed_mid_batch_loses_nothing(cluster, local_run, tmp_path):
+    """SIGKILL to a worker that is rendering a chunk: the scheduler gives its chunk to the other
+    worker, the batch completes with every file the local run's, and no temporary file is left."""
+    out = tmp_path / "out"
+    killed = []
+
+    def progress(done: int, total: int) -> None:
+        if done and not killed:
+            busy = [w for w, keys in cluster.processing().items() if keys]
+            assert busy, "no worker has a chunk left to lose"
+            pid = cluster.run(os.getpid, workers=busy[:1])[busy[0]]
+            os.kill(pid, signal.SIGKILL)
+            killed.append(pid)
+
+    spec = parse_spec(SPEC.format(count=COUNT), source="b.toml")
+    (out / "items").mkdir(parents=True)
+    (out / "items" / ".barsynth-left-by-a-killed-worker.tmp").write_bytes(b"partial")
+    (out / "items" / "notes.tmp").write_bytes(b"not ours")
+    rows = run_batch(spec, out, scheduler=cluster, progress=progress)
+    assert killed and len(rows) == COUNT
+    with pytest.raises(ProcessLookupError):
+        os.kill(killed[0], 0)
+    tree = _tree(out)
+    assert tree.pop("items/notes.tmp") == b"not ours"  # (only our temporary names are removed)
+    assert tree == _tree(local_run)
+    assert all(file_sha256(out / r["file"]) == r["sha256"] for r in read_manifest(out / MANIFEST).values())
+    assert (out / METADATA).exists()
