@@ -185,6 +185,11 @@ def test_a_worker_killed_mid_batch_loses_nothing(cluster, local_run, tmp_path):
     (out / "items" / "notes.tmp").write_bytes(b"not ours")
     rows = run_batch(spec, out, scheduler=cluster, progress=progress)
     assert killed and len(rows) == COUNT
+    log = cluster.run_on_scheduler(lambda dask_scheduler: [t[:5] for t in dask_scheduler.transition_log])
+    lost = {key for key, start, finish, _, stimulus in log
+            if start == "processing" and finish == "released" and stimulus.startswith("handle-worker-cleanup")}
+    redone = {key for key, start, finish, _, _ in log if key in lost and start == "processing" and finish == "memory"}
+    assert lost and redone == lost  # a chunk was running on the killed worker, and ran again elsewhere
     with pytest.raises(ProcessLookupError):
         os.kill(killed[0], 0)
     tree = _tree(out)
@@ -192,3 +197,35 @@ def test_a_worker_killed_mid_batch_loses_nothing(cluster, local_run, tmp_path):
     assert tree == _tree(local_run)
     assert all(file_sha256(out / r["file"]) == r["sha256"] for r in read_manifest(out / MANIFEST).values())
     assert (out / METADATA).exists()
+
+
+def test_ctrl_c_on_the_client_cancels_the_clusters_work(cluster, tmp_path):
+    """The command interrupted mid-batch: status 130 in one line, every manifest row's file has
+    its hash, and the workers stop: each ends at most the item it was rendering."""
+    spec_path, out = tmp_path / "many.toml", tmp_path / "out"
+    spec_path.write_text(SPEC.format(count=400))
+    env = dict(os.environ, PYTHONPATH=str(SRC))
+    proc = subprocess.Popen([sys.executable, "-m", "barsynth", "batch", str(spec_path), "-o", str(out),
+                             "--dask-scheduler", cluster.scheduler.address],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, start_new_session=True)
+    try:
+        for _ in range(1200):  # until a few items are written (at most 60 s)
+            if (out / "items").is_dir() and len(os.listdir(out / "items")) >= 40:
+                break
+            time.sleep(0.05)
+        os.killpg(proc.pid, signal.SIGINT)  # the client only (the workers are elsewhere)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        _stop(proc)
+    written = len(os.listdir(out / "items"))
+    for _ in range(600):  # until the workers are idle (at most 30 s)
+        if not any(cluster.run(lambda dask_worker: len(dask_worker.state.executing)).values()):
+            break
+        time.sleep(0.05)
+    assert proc.returncode == 130 and err.decode().strip() == "barsynth: interrupted"
+    names = os.listdir(out / "items")
+    assert not [n for n in names if n.startswith(".")]
+    assert len(names) - written <= 2 and len(names) < 120  # (chunks of 16 items: a whole one would be more)
+    rows = read_manifest(out / MANIFEST)
+    assert rows and all(file_sha256(out / r["file"]) == r["sha256"] for r in rows.values())
+    assert not cluster.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks))
