@@ -26,6 +26,7 @@ A cluster for trying this on one machine::
 
 from __future__ import annotations
 
+import asyncio
 import concurrent.futures
 import os
 import sys
@@ -36,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from ..checks import show_text
-from ..errors import BarsynthError
+from ..errors import BarsynthError, ParameterError
 
 __all__ = ["CONNECT_TIMEOUT_S", "DaskPool", "connect", "dask_pool", "task_cancelled"]
 
@@ -48,7 +49,8 @@ def connect(address: str, timeout_s: float | None = None) -> Any:
 
     Raises :class:`~barsynth.errors.BarsynthError` (one line, naming the address) when the
     scheduler cannot be reached within ``timeout_s`` (default :data:`CONNECT_TIMEOUT_S`) s or
-    the address cannot be read, and when Dask is not installed.
+    when Dask is not installed, :class:`~barsynth.errors.ParameterError` when the address
+    cannot be read.
     """
     try:
         import distributed
@@ -57,11 +59,22 @@ def connect(address: str, timeout_s: float | None = None) -> Any:
     timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
     try:
         with _quiet_distributed():
+            asyncio.run(_reach(address, timeout_s))  # (a Client that fails to connect complains again at exit)
             return distributed.Client(address, timeout=timeout_s, set_as_default=False)
-    except (OSError, TimeoutError, ValueError, TypeError) as exc:
-        reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise BarsynthError(f"could not reach the Dask scheduler at {show_text(str(address))} "
-                            f"within {timeout_s:g} s: {show_text(reason)}") from None
+    except (ValueError, TypeError):
+        raise ParameterError(f"parameter dask-scheduler = {show_text(repr(address))} is not a scheduler's address; "
+                             "allowed: tcp://HOST:PORT") from None
+    except (OSError, TimeoutError):
+        raise BarsynthError(f"could not reach the Dask scheduler at {show_text(str(address))} within {timeout_s:g} s "
+                            "(is `dask scheduler` running there, and the port open?)") from None
+
+
+async def _reach(address: str, timeout_s: float) -> None:
+    """Open and close a connection to ``address`` (raises as ``distributed.Client`` would)."""
+    from distributed.comm import connect as open_comm
+
+    comm = await open_comm(address, timeout=timeout_s)
+    await comm.close()
 
 
 class DaskPool:

@@ -1,0 +1,142 @@
+"""Batch rendering throughput: 1 s twangs per second through ``run_batch`` on 1 and 2 local
+worker processes and on a Dask cluster on loopback with 1 and 2 workers (run by hand, never as
+a timed test).
+
+    python benchmarks/bench_batch.py [--count 96] [--repeat 1] [--no-dask]
+
+Each run renders ``--count`` items of a twang spec (plastic-30cm, 1 s at 48 kHz, FLAC, length
+and shape varied, features measured: what ``barsynth batch`` does) into a fresh folder and
+prints
+
+  * items/s end to end (the pool's start included: the spawned processes import barsynth and
+    load numba's cached kernels, about a second; the Dask runs include connecting),
+  * the steady rate: the items after the first chunk's over the time after it (the pool's
+    start-up left out),
+
+and the ratios of 2 workers to 1 (targets of issue 18: >= 1.8x on 2 local cores, >= 1.6x for
+two Dask workers against one local). The cluster is ``dask scheduler`` and ``dask worker``
+processes (one thread each) on 127.0.0.1, started here and warmed with a small batch before it
+is timed; the second worker joins for the 2-worker runs. ``--repeat``: best of N per setting.
+The machine's load average is printed before and after: on a shared machine the ratios are
+only as good as the second core is free.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from barsynth.batch.run import run_batch
+from barsynth.batch.spec import parse_spec
+
+SPEC = """model = "twang"
+preset = "plastic-30cm"
+count = {count}
+seed = 3
+duration_s = 1.0
+format = "flac"
+[vary.length_m]
+random = [0.15, 0.4]
+[vary.shape]
+mutate = 0.2
+"""
+
+
+def one_run(count: int, out: Path, **how) -> tuple[float, float]:
+    """(end-to-end items/s, steady items/s) of one batch of ``count`` items into ``out``."""
+    finished: list[tuple[float, int]] = []
+    start = time.perf_counter()
+    run_batch(parse_spec(SPEC.format(count=count), source="bench.toml"), out,
+              progress=lambda done, total: finished.append((time.perf_counter(), done)), **how)
+    end = time.perf_counter()
+    first = next((t, n) for t, n in finished if n > 0)
+    steady = (count - first[1]) / (end - first[0]) if count > first[1] and end > first[0] else float("nan")
+    return count / (end - start), steady
+
+
+def measure(label: str, count: int, repeat: int, work: Path, **how) -> tuple[float, float]:
+    best = (0.0, 0.0)
+    for i in range(repeat):
+        rate, steady = one_run(count, work / f"{label}-{i}".replace(" ", "_"), **how)
+        best = max(best, (rate, steady))
+    print(f"{label:<16} {best[0]:6.2f} items/s end to end   {best[1]:6.2f} items/s steady", flush=True)
+    return best
+
+
+def start(args: list[str], work: Path) -> subprocess.Popen:
+    env = dict(os.environ)
+    src = Path(__file__).resolve().parents[1] / "src"
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(src), env.get("PYTHONPATH")]))
+    return subprocess.Popen([sys.executable, "-m", *args], env=env, cwd=work, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+def stop(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGTERM)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def dask_runs(count: int, repeat: int, work: Path) -> dict[int, tuple[float, float]]:
+    """The two Dask settings on one scheduler: one worker, then a second joins."""
+    from distributed import Client
+
+    procs = []
+    results = {}
+    try:
+        scheduler_file = work / "scheduler.json"
+        procs.append(start(["distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0",
+                            "--no-dashboard", "--scheduler-file", str(scheduler_file)], work))
+        while not (scheduler_file.exists() and scheduler_file.stat().st_size):
+            time.sleep(0.05)
+        address = json.loads(scheduler_file.read_text())["address"]
+        with Client(address, timeout=30, set_as_default=False) as client:
+            for n in (1, 2):
+                procs.append(start(["distributed.cli.dask_worker", address, "--nthreads", "1", "--nworkers", "1",
+                                    "--host", "127.0.0.1", "--no-dashboard", "--name", f"w{n}",
+                                    "--local-directory", str(work / f"w{n}")], work))
+                client.wait_for_workers(n, timeout=60)
+                one_run(2 * n, work / f"warm-{n}", scheduler=address)  # (the new worker loads the kernels)
+                results[n] = measure(f"dask, {n} worker{'s' * (n > 1)}", count, repeat, work, scheduler=address)
+    finally:
+        for proc in reversed(procs):
+            stop(proc)
+    return results
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--count", type=int, default=96, help="items per run (default 96)")
+    parser.add_argument("--repeat", type=int, default=1, help="best of N runs per setting (default 1)")
+    parser.add_argument("--no-dask", action="store_true", help="the local pool only")
+    args = parser.parse_args()
+    print(f"{args.count} twangs of 1 s at 48 kHz (FLAC, features measured); {os.cpu_count()} cores; "
+          f"load average {os.getloadavg()[0]:.2f}", flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        one_run(2, work / "warm", workers=1)  # (numba's cache written, if it was not)
+        local = {n: measure(f"local, {n} worker{'s' * (n > 1)}", args.count, args.repeat, work, workers=n)
+                 for n in (1, 2)}
+        dask = {} if args.no_dask else dask_runs(args.count, args.repeat, work)
+    print(f"local 2 / local 1: {local[2][0] / local[1][0]:.2f}x end to end, {local[2][1] / local[1][1]:.2f}x steady "
+          "(target >= 1.8x)")
+    if dask:
+        print(f"dask 2 / local 1:  {dask[2][0] / local[1][0]:.2f}x end to end, {dask[2][1] / local[1][1]:.2f}x steady "
+              "(target >= 1.6x)")
+        print(f"dask 2 / dask 1:   {dask[2][0] / dask[1][0]:.2f}x end to end, {dask[2][1] / dask[1][1]:.2f}x steady")
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
