@@ -197,8 +197,6 @@ def test_a_worker_killed_mid_batch_loses_nothing(cluster, local_run, tmp_path):
             if start == "processing" and finish == "released" and stimulus.startswith("handle-worker-cleanup")}
     redone = {key for key, start, finish, _, _ in log if key in lost and start == "processing" and finish == "memory"}
     assert lost and redone == lost  # a chunk was running on the killed worker, and ran again elsewhere
-    with pytest.raises(ProcessLookupError):
-        os.kill(killed[0], 0)
     tree = _tree(out)
     assert tree.pop("items/notes.tmp") == b"not ours"  # (only our temporary names are removed)
     assert tree == _tree(local_run)
