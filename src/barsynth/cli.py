@@ -1506,10 +1506,11 @@ def listen_report(results, csv_dir, plot_path, holm_correction):
 @main.command()
 @click.argument("spec_path", metavar="SPEC.toml", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "out_dir", required=True, metavar="DIR", type=click.Path(path_type=Path),
-              help="Folder for items/, manifest.csv, metadata.csv and spec.toml (made if missing).")
+              help="Folder for audio/, manifest.csv and .parquet, metadata.csv and spec.toml (made if missing).")
 @click.option("--workers", default=None, type=_Whole(1, 1024), metavar="N",
               help="Local processes rendering items at once (default: one per core).")
-@click.option("--resume", is_flag=True, help="Keep finished items whose files match the manifest's hash.")
+@click.option("--resume", is_flag=True, help="Keep finished items of the same spec whose files match the "
+                                              "manifest's hash; render the rest.")
 @click.option("--dask-scheduler", "scheduler", default=None, metavar="ADDRESS",
               help="Render on the Dask cluster of this scheduler (tcp://HOST:PORT) instead of local processes; "
                    "DIR must be shared with its workers (e.g. NFS). Not with --workers.")
@@ -1517,8 +1518,9 @@ def batch(spec_path, out_dir, workers, resume, scheduler):
     """Render a batch of variations: one audio file per item and a manifest.
 
     The spec (TOML) names a model, a preset, a count, a seed and how each varied parameter
-    varies (grid, list, random, mutate); see barsynth.batch.spec. The same spec gives
-    byte-identical files whatever the number of workers. A bad spec writes nothing.
+    varies (grid, list, random, mutate); see docs/batch.md. Random draws the model refuses
+    are drawn again and counted. The same spec gives byte-identical files whatever the number
+    of workers. A bad spec writes nothing; Ctrl-C leaves only whole files, and --resume goes on.
 
     \b
     Examples:
@@ -1526,6 +1528,10 @@ def batch(spec_path, out_dir, workers, resume, scheduler):
       barsynth batch twangs.toml -o twangs --resume
       barsynth batch twangs.toml -o /nfs/twangs --dask-scheduler tcp://10.0.0.5:8786
     """
+    from .extras import require
+
+    require("batch", "barsynth batch")
+    from .batch.progress import BatchProgress
     from .batch.run import run_batch
     from .batch.spec import load_spec
 
@@ -1538,23 +1544,30 @@ def batch(spec_path, out_dir, workers, resume, scheduler):
         raise ParameterError(f"parameter output = {show_text(out_dir)} is not a folder; allowed: a folder, "
                              "made if missing")
     client = None
-    if scheduler is not None:  # (before anything is written)
+    if scheduler is not None:  # (connected before anything is written)
         from .batch.cluster import connect
 
         client = connect(scheduler)
+        click.get_current_context().call_on_close(client.close)
     try:
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise BarsynthError(f"could not create {show_text(out_dir)}: {exc.strerror or exc}") from None
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BarsynthError(f"could not create {show_text(out_dir)}: {exc.strerror or exc}") from None
+    kept = []
+    with BatchProgress() as progress:
+        def watch(done, total):
+            if not kept:  # the first call: the items a resume kept
+                kept.append(done)
+            progress(done, total)
+
         rows = run_batch(spec, out_dir, workers=workers or os.cpu_count() or 1, resume=resume, spec_text=text,
-                         scheduler=client)
-    finally:
-        if client is not None:
-            client.close()
+                         progress=watch, scheduler=client)
     refused = sum(1 for row in rows if row["error"])
-    click.echo(f"wrote {len(rows) - refused} items to {out_dir}" + (f" ({refused} refused: see manifest.csv)"
-                                                                   if refused else ""))
+    redrawn = sum(int(row["rejected"]) for row in rows)
+    notes = [f"{kept[0]} kept"] if resume and kept else []
+    notes += [f"{redrawn} refused draws redrawn"] if redrawn else []
+    notes += [f"{refused} refused: see manifest.csv"] if refused else []
+    click.echo(f"wrote {len(rows) - refused} items to {out_dir}" + (f" ({'; '.join(notes)})" if notes else ""))
 
 
 if __name__ == "__main__":  # pragma: no cover
