@@ -109,14 +109,20 @@ def test_the_cluster_writes_the_local_runs_bytes(cluster, local_run, tmp_path):
     assert tree == _tree(local_run)  # audio, manifest and metadata
 
 
-def test_the_address_form_connects_and_workers_render_single_threaded(cluster, local_run, tmp_path):
-    """run_batch(scheduler="tcp://...") connects itself; the workers' BLAS is single-threaded
-    as in the local pool."""
+def test_the_command_renders_on_the_cluster_with_single_threaded_workers(cluster, local_run, tmp_path):
+    """``barsynth batch --dask-scheduler ADDRESS``; the workers' BLAS is single-threaded as in
+    the local pool."""
+    from click.testing import CliRunner
+
+    from barsynth.cli import main
+
     env = cluster.run(lambda: {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")})
     assert all(v == {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"} for v in env.values())
-    spec = parse_spec(SPEC.format(count=4), source="b.toml")
-    out = tmp_path / "out"
-    run_batch(spec, out, scheduler=cluster.scheduler.address)
+    spec_path, out = tmp_path / "b.toml", tmp_path / "out"
+    spec_path.write_text(SPEC.format(count=4))
+    result = CliRunner().invoke(main, ["batch", str(spec_path), "-o", str(out), "--dask-scheduler",
+                                       cluster.scheduler.address], catch_exceptions=False)
+    assert result.exit_code == 0 and "wrote 4 items" in result.output
     assert _tree(out / AUDIO_DIR) == dict(sorted(_tree(local_run / AUDIO_DIR).items())[:4])
 
 
