@@ -101,7 +101,7 @@ def _tree(folder: Path) -> dict[str, bytes]:
 
 def test_the_cluster_writes_the_local_runs_bytes(cluster, local_run, tmp_path):
     out = tmp_path / "out"
-    rows = run_batch(parse_spec(SPEC.format(count=COUNT), source="b.toml"), out, scheduler=cluster)
+    rows = run_batch(parse_spec(SPEC.format(count=COUNT), source="b.toml"), out, scheduler=cluster.scheduler.address)
     assert len(rows) == COUNT and not any(r["error"] for r in rows)
     assert float(rows[0]["f0_hz"]) > 20  # features measured on the workers
     tree = _tree(out)
@@ -168,12 +168,23 @@ def test_workers_with_the_dask_scheduler_is_refused(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_a_folder_the_workers_do_not_see_is_refused(cluster, tmp_path, monkeypatch):
+@pytest.mark.parametrize("answers, words", [
+    ({"tcp://127.0.0.1:1": (False, None), "tcp://127.0.0.1:2": (True, None)},
+     "the Dask worker tcp://127.0.0.1:1 does not see the output folder .* must be shared"),
+    ({"tcp://127.0.0.1:1": (True, None), "tcp://127.0.0.1:2": ModuleNotFoundError("No module named 'barsynth'")},
+     "the Dask worker tcp://127.0.0.1:2 cannot run barsynth .*No module named 'barsynth'"),
+    ({"tcp://127.0.0.1:1": (True, "0.0.1")}, "the Dask worker tcp://127.0.0.1:1 has barsynth 0.0.1, the client"),
+])
+def test_workers_that_cannot_do_the_batch_are_refused(cluster, tmp_path, monkeypatch, answers, words):
+    """(The workers' answers are made up: a real one sees the folder and runs this barsynth.)"""
+    from barsynth import __version__
     from barsynth.errors import BarsynthError
 
-    blind = {"tcp://127.0.0.1:1": False, "tcp://127.0.0.1:2": True}
-    monkeypatch.setattr(type(cluster), "run", lambda self, *a, **k: blind)
-    with pytest.raises(BarsynthError, match="does not see the output folder .* must be shared"):
+    answers = {w: (a[0], a[1] or __version__) if isinstance(a, tuple) else a for w, a in answers.items()}
+    real = cluster.run(__import__("barsynth.batch.cluster", fromlist=["_probe"])._probe, __file__)
+    assert real and all(answer == (True, __version__) for answer in real.values())
+    monkeypatch.setattr(type(cluster), "run", lambda self, *a, **k: answers)
+    with pytest.raises(BarsynthError, match=words):
         run_batch(parse_spec(SPEC.format(count=2), source="b.toml"), tmp_path / "out", scheduler=cluster)
     assert not list((tmp_path / "out" / AUDIO_DIR).iterdir())
 

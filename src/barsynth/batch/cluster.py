@@ -103,11 +103,11 @@ class DaskPool:
 @contextmanager
 def dask_pool(scheduler: Any, out_dir: Any) -> Iterator[DaskPool]:
     """A :class:`DaskPool` on ``scheduler`` (an address, connected here and closed after, or a
-    connected ``distributed.Client``, left open), once every worker is seen to share
-    ``out_dir``."""
+    connected ``distributed.Client``, left open), once every worker is seen to run this barsynth
+    version and to share ``out_dir``."""
     client = connect(scheduler) if isinstance(scheduler, str) else scheduler
     try:
-        _check_shared(client, Path(out_dir))
+        _check_workers(client, Path(out_dir))
         pool = DaskPool(client)
         with _quiet_distributed():
             yield pool
@@ -134,21 +134,39 @@ def task_cancelled() -> bool:
     return task is None or task.state in ("cancelled", "released", "forgotten")
 
 
-def _check_shared(client: Any, out: Path) -> None:
-    """Refuse (one line) unless every worker sees a file the client just wrote in ``out``."""
+def _check_workers(client: Any, out: Path) -> None:
+    """Refuse (one line) unless every worker imports this barsynth version and sees a file the
+    client just wrote in ``out``."""
+    from .. import __version__
+
     marker = out.absolute() / f".barsynth-shared-{uuid.uuid4().hex}.tmp"
     marker.write_bytes(b"")
     try:
-        seen = client.run(os.path.exists, str(marker))
+        seen = client.run(_probe, str(marker), on_error="return")
     finally:
         marker.unlink(missing_ok=True)
-    blind = sorted(worker for worker, ok in seen.items() if not ok)
+    for worker, answer in sorted(seen.items()):
+        if isinstance(answer, BaseException):
+            raise BarsynthError(f"the Dask worker {show_text(worker)} cannot run barsynth "
+                                f"({type(answer).__name__}: {show_text(answer)}); install barsynth {__version__} "
+                                "on every worker")
+        if answer[1] != __version__:
+            raise BarsynthError(f"the Dask worker {show_text(worker)} has barsynth {show_text(answer[1])}, the client "
+                                f"{__version__}; allowed: the same version everywhere (the same sounds)")
+    blind = sorted(worker for worker, answer in seen.items() if not answer[0])
     if blind:
         raise BarsynthError(f"the Dask worker {show_text(blind[0])} does not see the output folder "
                             f"{show_text(str(out.absolute()))}" + (f" (nor do {len(blind) - 1} more)"
                                                                   if len(blind) > 1 else "")
                             + "; the folder must be shared by the client and every worker, at the same path "
                               "(e.g. NFS)")
+
+
+def _probe(marker: str) -> tuple[bool, str]:
+    """On a worker: whether it sees ``marker`` and its barsynth version."""
+    from .. import __version__
+
+    return os.path.exists(marker), __version__
 
 
 @contextmanager
