@@ -16,7 +16,11 @@ prints
 and the ratios of 2 workers to 1 (targets of issue 18: >= 1.8x on 2 local cores, >= 1.6x for
 two Dask workers against one local). The cluster is ``dask scheduler`` and ``dask worker``
 processes (one thread each) on 127.0.0.1, started here and warmed with a small batch before it
-is timed; the second worker joins for the 2-worker runs. ``--repeat``: best of N per setting.
+is timed; the second worker joins for the 2-worker runs. The Dask settings are run twice:
+with Dask's default workers, and "tuned" with :data:`barsynth.batch.cluster.WORKER_ENVIRONMENT`
+(Dask's statistical profiler off, glibc's malloc thresholds back to large: Dask's nanny sets
+``MALLOC_TRIM_THRESHOLD_=65536``, which makes every large NumPy array a fresh ``mmap``; the two
+cost about 30 % of a render). ``--repeat``: best of N per setting.
 The machine's load average is printed before and after: on a shared machine the ratios are
 only as good as the second core is free.
 """
@@ -67,8 +71,8 @@ def measure(label: str, count: int, repeat: int, work: Path, **how) -> tuple[flo
     return rate, marginal
 
 
-def start(args: list[str], work: Path) -> subprocess.Popen:
-    env = dict(os.environ)
+def start(args: list[str], work: Path, **extra_env: str) -> subprocess.Popen:
+    env = dict(os.environ, **extra_env)
     src = Path(__file__).resolve().parents[1] / "src"
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(src), env.get("PYTHONPATH")]))
     return subprocess.Popen([sys.executable, "-m", *args], env=env, cwd=work, stdout=subprocess.DEVNULL,
@@ -85,8 +89,11 @@ def stop(proc: subprocess.Popen) -> None:
             proc.wait()
 
 
-def dask_runs(count: int, repeat: int, work: Path) -> dict[int, tuple[float, float]]:
-    """The two Dask settings on one scheduler: one worker, then a second joins."""
+def dask_runs(count: int, repeat: int, work: Path, tuned: bool) -> dict[int, tuple[float, float]]:
+    """The two Dask settings on one scheduler: one worker, then a second joins (``tuned``:
+    started with :data:`barsynth.batch.cluster.WORKER_ENVIRONMENT`)."""
+    from barsynth.batch.cluster import WORKER_ENVIRONMENT
+
     from distributed import Client
 
     procs = []
@@ -102,10 +109,12 @@ def dask_runs(count: int, repeat: int, work: Path) -> dict[int, tuple[float, flo
             for n in (1, 2):
                 procs.append(start(["distributed.cli.dask_worker", address, "--nthreads", "1", "--nworkers", "1",
                                     "--host", "127.0.0.1", "--no-dashboard", "--name", f"w{n}",
-                                    "--local-directory", str(work / f"w{n}")], work))
+                                    "--local-directory", str(work / f"w{n}")], work,
+                                   **(WORKER_ENVIRONMENT if tuned else {})))
                 client.wait_for_workers(n, timeout=60)
                 one_run(2 * n, work / f"warm-{n}", scheduler=address)  # (the new worker loads the kernels)
-                results[n] = measure(f"dask, {n} worker{'s' * (n > 1)}", count, repeat, work, scheduler=address)
+                label = f"dask{' tuned' if tuned else ''}, {n} worker{'s' * (n > 1)}"
+                results[n] = measure(label, count, repeat, work, scheduler=address)
     finally:
         for proc in reversed(procs):
             stop(proc)
@@ -125,13 +134,16 @@ def main() -> None:
         one_run(2, work / "warm", workers=1)  # (numba's cache written, if it was not)
         local = {n: measure(f"local, {n} worker{'s' * (n > 1)}", args.count, args.repeat, work, workers=n)
                  for n in (1, 2)}
-        dask = {} if args.no_dask else dask_runs(args.count, args.repeat, work)
-    print(f"local 2 / local 1: {local[2][0] / local[1][0]:.2f}x end to end, {local[2][1] / local[1][1]:.2f}x marginal "
+        dask = {} if args.no_dask else {tuned: dask_runs(args.count, args.repeat, work / str(tuned), tuned)
+                                        for tuned in (False, True)}
+    print(f"local 2 / local 1:  {local[2][0] / local[1][0]:.2f}x end to end, {local[2][1] / local[1][1]:.2f}x marginal "
           "(target >= 1.8x)")
-    if dask:
-        print(f"dask 2 / local 1:  {dask[2][0] / local[1][0]:.2f}x end to end, {dask[2][1] / local[1][1]:.2f}x marginal "
-              "(target >= 1.6x)")
-        print(f"dask 2 / dask 1:   {dask[2][0] / dask[1][0]:.2f}x end to end, {dask[2][1] / dask[1][1]:.2f}x marginal")
+    for tuned, runs in dask.items():
+        name = "dask tuned" if tuned else "dask"
+        print(f"{name} 2 / local 1: {runs[2][0] / local[1][0]:.2f}x end to end, "
+              f"{runs[2][1] / local[1][1]:.2f}x marginal (target >= 1.6x)")
+        print(f"{name} 2 / {name} 1: {runs[2][0] / runs[1][0]:.2f}x end to end, "
+              f"{runs[2][1] / runs[1][1]:.2f}x marginal")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

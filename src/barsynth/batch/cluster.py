@@ -12,6 +12,19 @@ Workers started by ``dask worker`` (with its nanny, the default) get one BLAS / 
 per process from Dask's ``distributed.nanny.pre-spawn-environ``, as the local pool's processes
 do: the files and the features are then byte-identical to a local run of the same spec.
 
+Dask's defaults cost a worker about 30 % of the local pool's speed: its statistical profiler
+samples the rendering thread every 10 ms, and the nanny's ``MALLOC_TRIM_THRESHOLD_=65536`` makes
+glibc map and unmap every large NumPy array afresh. Workers dedicated to batches are best
+started with :data:`WORKER_ENVIRONMENT` in their environment (the benchmark
+``benchmarks/bench_batch.py`` measures both)::
+
+    env DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False \
+        DASK_DISTRIBUTED__NANNY__PRE_SPAWN_ENVIRON="{'MALLOC_TRIM_THRESHOLD_': 134217728, \
+                                                    'MALLOC_MMAP_THRESHOLD_': 33554432}" \
+        dask worker tcp://10.0.0.5:8786 --nthreads 1 --nworkers 8
+
+(the nanny keeps setting one BLAS thread). The files are the same either way.
+
 A worker lost mid-batch: the scheduler gives its chunks to another worker (which writes the
 same bytes again); a temporary file it left beside the audio is removed by the client at the
 end of the run. A Ctrl-C on the client cancels every future; a chunk already running stops
@@ -39,9 +52,14 @@ from typing import Any
 from ..checks import show_text
 from ..errors import BarsynthError, ParameterError
 
-__all__ = ["CONNECT_TIMEOUT_S", "DaskPool", "connect", "dask_pool", "task_cancelled"]
+__all__ = ["CONNECT_TIMEOUT_S", "WORKER_ENVIRONMENT", "DaskPool", "connect", "dask_pool", "task_cancelled"]
 
 CONNECT_TIMEOUT_S = 10.0  # how long the client tries to reach the scheduler
+WORKER_ENVIRONMENT = {  # for `dask worker` (see the module's docstring): as fast as the local pool
+    "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
+    "DASK_DISTRIBUTED__NANNY__PRE_SPAWN_ENVIRON": "{'MALLOC_TRIM_THRESHOLD_': 134217728, "
+                                                  "'MALLOC_MMAP_THRESHOLD_': 33554432}",
+}
 
 
 def connect(address: str, timeout_s: float | None = None) -> Any:
