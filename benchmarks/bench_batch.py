@@ -92,9 +92,9 @@ def stop(proc: subprocess.Popen) -> None:
 def dask_runs(count: int, repeat: int, work: Path, tuned: bool) -> dict[int, tuple[float, float]]:
     """The two Dask settings on one scheduler: one worker, then a second joins (``tuned``:
     started with :data:`barsynth.batch.cluster.WORKER_ENVIRONMENT`)."""
-    from barsynth.batch.cluster import WORKER_ENVIRONMENT
-
     from distributed import Client
+
+    from barsynth.batch.cluster import WORKER_ENVIRONMENT
 
     procs = []
     results = {}
