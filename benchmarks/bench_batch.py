@@ -98,6 +98,7 @@ def dask_runs(count: int, repeat: int, work: Path, tuned: bool) -> dict[int, tup
 
     procs = []
     results = {}
+    work.mkdir()
     try:
         scheduler_file = work / "scheduler.json"
         procs.append(start(["distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0",
