@@ -10,14 +10,8 @@ from ...parameters import CHOICE, INT, Parameter, ParameterTable
 from ...physics.boundary import BOUNDARY_CONDITIONS
 from ..constraints import Constraint
 from ..notemap import EXCITER_VELOCITIES, NoteMap
-from ..rows import (
-    bar_size_parameters,
-    excitation_parameter,
-    level_parameter,
-    profile_constraint,
-    profile_parameters,
-    theory_parameters,
-)
+from ..rows import (bar_size_parameters, excitation_parameter, level_parameter, profile_constraint,
+                    profile_parameters, theory_parameters)
 
 FD_EXCITERS = (Strike, Bow, Pluck)
 """The exciters it offers, in the order of its ``excitation`` choices (the model's ``exciters``)."""
