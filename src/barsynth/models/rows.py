@@ -159,10 +159,11 @@ def profile_parameters(note: str = "", when: Any = ()) -> list[Parameter]:
     ]
 
 
-def profile_constraint(acts: Callable[[Any], bool] | None = None) -> Constraint:
+def profile_constraint(acts: Callable[[Any], bool] | None = None, when: tuple[str, str] | None = None) -> Constraint:
     """The profile's own check (:class:`~barsynth.physics.profiles.Profile`: ``profile = samples``
     needs at least two ``profile_samples``) as a joint constraint, where ``acts(p)`` (by default
-    always): the same check, run on the record, so one copy of it and of its message."""
+    always; ``when``: the row and value that make it act, for the docs): the same check, run on
+    the record, so one copy of it and of its message."""
     from ..errors import ParameterError
     from ..physics.profiles import THINNEST
 
@@ -175,8 +176,9 @@ def profile_constraint(acts: Callable[[Any], bool] | None = None) -> Constraint:
             return str(exc)
         return None
 
-    return Constraint(("profile", "profile_samples"),
-                      f"`profile = samples`: at least 2 `profile_samples`, each {THINNEST:g} to 1", refusal)
+    where = f"`{when[0]} = {when[1]}` and " if when else ""
+    return Constraint(("profile", "profile_samples", *when[:1]) if when else ("profile", "profile_samples"),
+                      f"{where}`profile = samples`: at least 2 `profile_samples`, each {THINNEST:g} to 1", refusal)
 
 
 def profile_of(p: Any):

@@ -228,7 +228,7 @@ CONSTRAINTS = (
     Constraint(("tube_mode", "tube", "tuning", "mode_count", "mode_ratios"),
                "`tube = on`: `tube_mode` at most the object's modes (`mode_count`, or as many as `mode_ratios`)",
                _tube_mode),
-    profile_constraint(lambda p: p.tuning == "geometry"),
+    profile_constraint(lambda p: p.tuning == "geometry", ("tuning", "geometry")),
     Constraint(_MODES, f"some mode between {LOWEST_HZ:g} Hz and a quarter of the sample rate (modes in closed form: "
                "`tuning = ratios`, `physics`, or `geometry` of a uniform Euler-Bernoulli bar)", _band),
     Constraint(("tube_mode", "tube", *_MODES), f"`tube = on`: the mode `tube_mode` between {LOWEST_HZ:g} Hz and a "
