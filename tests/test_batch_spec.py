@@ -19,7 +19,7 @@ from barsynth.batch.items import (
     make_item,
     make_items,
 )
-from barsynth.batch.run import MANIFEST, METADATA, file_sha256, read_manifest, run_batch
+from barsynth.batch.run import MANIFEST, METADATA, PARQUET, file_sha256, read_manifest, run_batch
 from barsynth.batch.spec import load_spec, parse_spec
 from barsynth.errors import BarsynthError, BatchSpecError
 
@@ -140,8 +140,8 @@ def test_items_are_deterministic_and_independent_of_the_count():
 
 def test_the_seed_is_numpys_spawned_seed_sequence():
     children = np.random.SeedSequence(7).spawn(12)
-    for i, child in enumerate(children):
-        assert item_seed(7, i) == int(child.generate_state(1)[0])
+    for i, child in enumerate(children):  # the render seed: the first word of the item's first child
+        assert item_seed(7, i) == int(child.spawn(1)[0].generate_state(1)[0])
     seeds = [item.seed for item in make_items(spec_of(40))]
     assert len(set(seeds)) == 40
     assert [item.seed for item in make_items(parse_spec(SPEC.format(count=3).replace("seed = 7", "seed = 8")))] \
@@ -216,9 +216,9 @@ def small_runs(tmp_path_factory):
 def test_one_and_two_workers_write_byte_identical_files_and_manifests(small_runs):
     _, one, two, _ = small_runs
     a, b = _tree(one), _tree(two)
-    assert sorted(a) == [f"items/0000{i}.wav" for i in range(6)] + [MANIFEST, METADATA, "spec.toml"]
+    assert sorted(a) == [f"audio/0000000{i}.wav" for i in range(6)] + [MANIFEST, PARQUET, METADATA, "spec.toml"]
     assert a == b
-    assert not [name for name in os.listdir(one / "items") if name.startswith(".")]  # no temporary left
+    assert not [name for name in os.listdir(one / "audio") if name.startswith(".")]  # no temporary left
 
 
 def test_the_manifest_holds_hashes_seeds_parameters_and_features(small_runs):
@@ -252,17 +252,17 @@ def test_resume_redoes_only_a_deleted_or_corrupted_file(small_runs, tmp_path):
     for name, data in _tree(one).items():
         (work / name).parent.mkdir(parents=True, exist_ok=True)
         (work / name).write_bytes(data)
-    os.remove(work / "items/00002.wav")
-    corrupt = work / "items/00004.wav"
+    os.remove(work / "audio/00000002.wav")
+    corrupt = work / "audio/00000004.wav"
     corrupt.write_bytes(corrupt.read_bytes()[:-10] + b"0123456789")
-    before = {name: os.stat(work / "items" / name).st_mtime_ns for name in os.listdir(work / "items")}
+    before = {name: os.stat(work / "audio" / name).st_mtime_ns for name in os.listdir(work / "audio")}
     calls = []
     again = run_batch(spec, work, workers=1, resume=True, progress=lambda done, total: calls.append((done, total)))
     assert calls[0] == (4, 6) and calls[-1] == (6, 6)  # 4 kept, 2 rendered
     assert again == rows and _tree(work) == _tree(one)
-    after = {name: os.stat(work / "items" / name).st_mtime_ns for name in os.listdir(work / "items")}
-    assert [n for n in before if n in after and after[n] != before[n]] == ["00004.wav"]  # the rest untouched
-    assert "00002.wav" in after
+    after = {name: os.stat(work / "audio" / name).st_mtime_ns for name in os.listdir(work / "audio")}
+    assert [n for n in before if n in after and after[n] != before[n]] == ["00000004.wav"]  # the rest untouched
+    assert "00000002.wav" in after
 
 
 def test_an_item_the_model_refuses_is_a_row_with_its_reason_and_no_file(tmp_path):
@@ -272,9 +272,9 @@ def test_an_item_the_model_refuses_is_a_row_with_its_reason_and_no_file(tmp_path
     refused, kept = run_batch(spec, tmp_path, features=False)
     assert "below 20 Hz" in refused["error"] and refused["file"] == refused["sha256"] == ""
     assert kept["error"] == "" and file_sha256(tmp_path / kept["file"]) == kept["sha256"]
-    assert os.listdir(tmp_path / "items") == ["00001.wav"]
+    assert os.listdir(tmp_path / "audio") == ["00000001.wav"]
     with open(tmp_path / METADATA, newline="") as f:
-        assert [m["file_name"] for m in csv.DictReader(f)] == ["items/00001.wav"]
+        assert [m["file_name"] for m in csv.DictReader(f)] == ["audio/00000001.wav"]
 
 
 def test_resume_redoes_items_of_another_spec(small_runs, tmp_path):
@@ -341,7 +341,7 @@ def test_ctrl_c_stops_the_pool_and_leaves_no_partial_file(tmp_path):
                             start_new_session=True)
     try:
         for _ in range(1200):  # until a few chunks of items are written (at most 60 s)
-            if (out / "items").is_dir() and len(os.listdir(out / "items")) >= 50:
+            if (out / "audio").is_dir() and len(os.listdir(out / "audio")) >= 50:
                 break
             time.sleep(0.05)
         os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the command and its workers
@@ -350,7 +350,7 @@ def test_ctrl_c_stops_the_pool_and_leaves_no_partial_file(tmp_path):
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130 and err.decode().strip() == "barsynth: interrupted"
-    names = os.listdir(out / "items")
+    names = os.listdir(out / "audio")
     assert names and not [n for n in names if n.startswith(".")] and len(names) < 300
     rows = read_manifest(out / MANIFEST)
     assert rows and all(file_sha256(out / r["file"]) == r["sha256"] for r in rows.values())

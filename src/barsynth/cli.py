@@ -1506,22 +1506,28 @@ def listen_report(results, csv_dir, plot_path, holm_correction):
 @main.command()
 @click.argument("spec_path", metavar="SPEC.toml", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "out_dir", required=True, metavar="DIR", type=click.Path(path_type=Path),
-              help="Folder for items/, manifest.csv, metadata.csv and spec.toml (made if missing).")
+              help="Folder for audio/, manifest.csv and .parquet, metadata.csv and spec.toml (made if missing).")
 @click.option("--workers", default=None, type=_Whole(1, 1024), metavar="N",
               help="Local processes rendering items at once (default: one per core).")
-@click.option("--resume", is_flag=True, help="Keep finished items whose files match the manifest's hash.")
+@click.option("--resume", is_flag=True, help="Keep finished items of the same spec whose files match the "
+                                              "manifest's hash; render the rest.")
 def batch(spec_path, out_dir, workers, resume):
     """Render a batch of variations: one audio file per item and a manifest.
 
     The spec (TOML) names a model, a preset, a count, a seed and how each varied parameter
-    varies (grid, list, random, mutate); see barsynth.batch.spec. The same spec gives
-    byte-identical files whatever the number of workers. A bad spec writes nothing.
+    varies (grid, list, random, mutate); see docs/batch.md. Random draws the model refuses
+    are drawn again and counted. The same spec gives byte-identical files whatever the number
+    of workers. A bad spec writes nothing; Ctrl-C leaves only whole files, and --resume goes on.
 
     \b
     Examples:
       barsynth batch twangs.toml -o twangs --workers 2
       barsynth batch twangs.toml -o twangs --resume
     """
+    from .extras import require
+
+    require("batch", "barsynth batch")
+    from .batch.progress import BatchProgress
     from .batch.run import run_batch
     from .batch.spec import load_spec
 
@@ -1534,10 +1540,21 @@ def batch(spec_path, out_dir, workers, resume):
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise BarsynthError(f"could not create {show_text(out_dir)}: {exc.strerror or exc}") from None
-    rows = run_batch(spec, out_dir, workers=workers or os.cpu_count() or 1, resume=resume, spec_text=text)
+    kept = []
+    with BatchProgress() as progress:
+        def watch(done, total):
+            if not kept:  # the first call: the items a resume kept
+                kept.append(done)
+            progress(done, total)
+
+        rows = run_batch(spec, out_dir, workers=workers or os.cpu_count() or 1, resume=resume, spec_text=text,
+                         progress=watch)
     refused = sum(1 for row in rows if row["error"])
-    click.echo(f"wrote {len(rows) - refused} items to {out_dir}" + (f" ({refused} refused: see manifest.csv)"
-                                                                   if refused else ""))
+    redrawn = sum(int(row["rejected"]) for row in rows)
+    notes = [f"{kept[0]} kept"] if resume and kept else []
+    notes += [f"{redrawn} refused draws redrawn"] if redrawn else []
+    notes += [f"{refused} refused: see manifest.csv"] if refused else []
+    click.echo(f"wrote {len(rows) - refused} items to {out_dir}" + (f" ({'; '.join(notes)})" if notes else ""))
 
 
 if __name__ == "__main__":  # pragma: no cover

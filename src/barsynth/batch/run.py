@@ -1,19 +1,23 @@
 """Render a batch's items to files and write its manifest (spec 11.2), on local processes.
 
-``DIR/items/00000.wav`` (or ``.flac``, 24-bit PCM, peak-normalised to -1 dBFS as ``barsynth
+``DIR/audio/00000042.wav`` (or ``.flac``; 24-bit PCM, peak-normalised to -1 dBFS as ``barsynth
 render`` writes), each written to a temporary file in the same folder and renamed when
-complete, so an interrupted run leaves no partial file. ``DIR/manifest.csv`` has one row per
-finished item, in item order: :data:`FIXED_COLUMNS` (the file, its SHA-256, the render seed, the
-duration and three features: f0, the T60 of the strongest partial, the spectral centroid),
-then every parameter of the model's table, resolved. It is rewritten (atomically) as items
-finish, so a run stopped part-way can be resumed. ``DIR/metadata.csv`` is the same table
-in Hugging Face's audio-folder layout (a ``file_name`` column; rendered items only).
+complete, so an interrupted run leaves no partial file. ``DIR/manifest.csv`` and
+``DIR/manifest.parquet`` have one row per finished item, in item order: :data:`FIXED_COLUMNS`
+(the file, its SHA-256, the render seed, the draws the model refused before the item's, the
+duration and three features: f0, the T60 of the strongest partial, the spectral centroid;
+``error`` when the model refused the item), then every parameter of the model's table,
+resolved (typed in the Parquet file: numbers, bools, text, lists). They are rewritten
+(atomically) as items finish, so a run stopped part-way can be resumed. ``DIR/metadata.csv``
+is the same table in Hugging Face's audio-folder layout (a ``file_name`` column; rendered
+items only), and ``DIR/spec.toml`` the spec.
 
-Every item is rendered from its own seed and parameters alone (:mod:`.items`), in a process of
-a pool (started with ``spawn``, one BLAS thread each, even for one worker), so the files and
-the manifest are byte-identical whatever the number of workers or the order they finish.
-With ``resume`` an item whose manifest row matches (same seed and parameters) and whose
-file's SHA-256 is the manifest's is kept; every other item is rendered again.
+Every item is drawn and rendered from the spec and its index alone (:mod:`.items`), in a
+process of a pool (started with ``spawn``, one BLAS thread each, even for one worker), so the
+files and the manifest are byte-identical whatever the number of workers or the order they
+finish. With ``resume`` an item is kept when the folder holds the same spec (its count aside),
+its manifest row has the item's seed and its file's SHA-256 is the manifest's; every other
+item is rendered again. Without ``resume`` a folder's earlier items are replaced.
 """
 
 from __future__ import annotations
@@ -24,54 +28,68 @@ import io
 import math
 import multiprocessing
 import os
+import re
 import tempfile
 import time
 import warnings
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..errors import BarsynthError
-from .items import Item, make_items
-from .spec import BatchSpec
+from .items import Item, base_parameters, designed_item, item_seed
+from .spec import BatchSpec, parse_spec, spec_toml
 
-__all__ = ["FIXED_COLUMNS", "ITEMS_DIR", "MANIFEST", "item_file", "read_manifest", "render_item", "run_batch"]
+__all__ = ["AUDIO_DIR", "FIXED_COLUMNS", "MANIFEST", "PARQUET", "item_file", "read_manifest", "render_item",
+           "run_batch"]
 
-ITEMS_DIR = "items"
+AUDIO_DIR = "audio"
 MANIFEST = "manifest.csv"
+PARQUET = "manifest.parquet"
 METADATA = "metadata.csv"
-FIXED_COLUMNS = ("id", "file", "sha256", "seed", "duration_s", "f0_hz", "t60_s", "centroid_hz", "error")
+SPEC_COPY = "spec.toml"
+FIXED_COLUMNS = ("id", "file", "sha256", "seed", "rejected", "duration_s", "f0_hz", "t60_s", "centroid_hz", "error")
 SUBTYPE = "PCM_24"
 MAX_CHUNK = 16  # items per task of the pool (fewer round trips; at least 4 tasks per worker)
 SAVE_EVERY_S = 2.0  # the manifest is rewritten at most this often while items finish (and at the end)
 _FORMATS = {"wav": "WAV", "flac": "FLAC"}
-_MEASURED = ("sha256", "duration_s", "f0_hz", "t60_s", "centroid_hz", "error")  # known only once rendered
+_AUDIO_NAME = re.compile(r"\d{8}\.(wav|flac)")  # an item's file, as item_file names it
 
 
 def item_file(spec: BatchSpec, index: int) -> str:
-    """Item ``index``'s file, relative to the output folder: ``items/00042.wav``."""
-    return f"{ITEMS_DIR}/{index:05d}.{spec.format}"
+    """Item ``index``'s file, relative to the output folder: ``audio/00000042.wav``."""
+    return f"{AUDIO_DIR}/{index:08d}.{spec.format}"
 
 
-def render_item(spec: BatchSpec, item: Item, out_dir: str, features: bool = True) -> dict[str, str]:
-    """Render ``item``, write its file atomically under ``out_dir`` and return its manifest row
-    (every value as text). Settings the model refuses (or whose samples blow up) give a row
-    with ``error`` set and no file (``file`` empty)."""
+def render_item(spec: BatchSpec, index: int, out_dir: str, features: bool = True, *,
+                base: Any = None) -> dict[str, str]:
+    """Draw item ``index`` (:func:`~.items.designed_item`), render it, write its file atomically
+    under ``out_dir`` and return its manifest row (every value as text). Settings the model
+    refuses (or whose samples blow up) give a row with ``error`` set and no file (``file`` empty)."""
     import soundfile
 
     from ..models import get_model
+    from ..models.rendering import render_voice
 
+    item, voice = designed_item(spec, index, base=base)
     row = _row_start(spec, item)
+    if item.error:
+        row.update(file="", error=item.error)
+        return row
     model = get_model(spec.model)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # (an "auto" render that reached its cap: still a sound)
-            samples = model.render(model.resolve(item.parameters), duration_s=spec.duration_s,
-                                   sample_rate=spec.sample_rate, seed=item.seed)
+            if voice is None:
+                samples = model.render(model.resolve(item.parameters), duration_s=spec.duration_s,
+                                       sample_rate=spec.sample_rate, seed=item.seed)
+            else:  # designed and checked while drawing: rendered as Model.render would
+                samples = render_voice(voice, spec.duration_s)
     except BarsynthError as exc:
         row.update(file="", error=str(exc))
         return row
@@ -86,14 +104,15 @@ def render_item(spec: BatchSpec, item: Item, out_dir: str, features: bool = True
     return row
 
 
-def render_chunk(spec: BatchSpec, items: list[Item], out_dir: str, features: bool = True) -> list[dict[str, str]]:
-    """:func:`render_item` for each of ``items`` in turn (one task of the pool); after a Ctrl-C
+def render_chunk(spec: BatchSpec, indices: list[int], out_dir: str, features: bool = True) -> list[dict[str, str]]:
+    """:func:`render_item` for each of ``indices`` in turn (one task of the pool); after a Ctrl-C
     the worker starts no more items (a chunk already queued ends at once)."""
     rows = []
-    for item in items:
+    base = base_parameters(spec)
+    for index in indices:
         if _STOPPED:
             raise KeyboardInterrupt
-        rows.append(render_item(spec, item, out_dir, features))
+        rows.append(render_item(spec, index, out_dir, features, base=base))
     return rows
 
 
@@ -121,34 +140,35 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
 
     ``resume``: keep the items the manifest in ``out_dir`` already holds whose files are
     intact (see the module's docstring). ``features``: measure f0, T60 and centroid (the
-    costly part of a short item). ``spec_text``: also written as ``DIR/spec.toml``.
+    costly part of a short item). ``spec_text``: the spec as the user wrote it, copied to
+    ``DIR/spec.toml`` (else the spec is written there in its canonical form).
     ``progress(done, total)`` is called as items finish (first with the items kept).
 
     The pool's processes are spawned, so a script that calls this needs Python's usual guard,
     ``if __name__ == "__main__":`` (``barsynth batch`` and notebooks need nothing).
     """
     out = Path(out_dir)
-    (out / ITEMS_DIR).mkdir(parents=True, exist_ok=True)
-    if spec_text is not None:
-        _write_atomically(out / "spec.toml", spec_text.encode("utf-8"))
-    items = make_items(spec)
-    rows: dict[int, dict[str, str]] = {}
-    if resume:
-        rows = {item.index: row for item, row in _kept(spec, items, out)}
-    todo = [item for item in items if item.index not in rows]
-    total = len(items)
+    (out / AUDIO_DIR).mkdir(parents=True, exist_ok=True)
+    rows: dict[int, dict[str, str]] = dict(_kept(spec, out)) if resume else {}
+    _remove_others(spec, out, rows)
+    if spec_text is not None or _stored_spec(out, source=spec.source) != spec:  # (a copy of this very spec is left as it is)
+        _write_atomically(out / SPEC_COPY, (spec_toml(spec) if spec_text is None else spec_text).encode("utf-8"))
+    todo = [index for index in range(spec.count) if index not in rows]
+    total = spec.count
     if progress:
         progress(len(rows), total)
-    saved_at = time.monotonic()
+    saved_at, save_cost = time.monotonic(), 0.0
 
     def finished(row: dict[str, str]) -> None:
-        nonlocal saved_at
+        nonlocal saved_at, save_cost
         rows[int(row["id"])] = row
         if progress:
             progress(len(rows), total)
-        if time.monotonic() - saved_at > SAVE_EVERY_S:
+        if time.monotonic() - saved_at > max(SAVE_EVERY_S, 20.0 * save_cost):  # (a long manifest: less often)
+            began = time.monotonic()
             _save(spec, out, rows)
             saved_at = time.monotonic()
+            save_cost = saved_at - began
 
     try:
         if todo:
@@ -212,24 +232,45 @@ def file_sha256(path: Any) -> str | None:
     return digest.hexdigest()
 
 
-def _kept(spec: BatchSpec, items: list[Item], out: Path):
-    """The ``(item, row)`` pairs of the old manifest that a resume keeps."""
-    old = read_manifest(out / MANIFEST)
-    for item in items:
-        row = old.get(item.index)
-        if row is None or row.get("error"):
+def _kept(spec: BatchSpec, out: Path) -> Iterator[tuple[int, dict[str, str]]]:
+    """The ``(index, row)`` pairs of the folder's manifest that a resume keeps: none unless the
+    folder holds the same spec (its count aside); then each row of an item of ``spec`` with the
+    item's seed and file, no error, and a file whose SHA-256 is the row's."""
+    old_spec = _stored_spec(out, source=spec.source)
+    if old_spec is None or replace(old_spec, count=spec.count) != spec:
+        return
+    for index, row in read_manifest(out / MANIFEST).items():
+        if not 0 <= index < spec.count or row.get("error") or not row.get("sha256"):
             continue
-        expected = _row_start(spec, item)
-        if any(row.get(k) != v for k, v in expected.items() if k not in _MEASURED):
-            continue  # another spec's item (or another file name)
-        if row.get("sha256") and file_sha256(out / row["file"]) == row["sha256"]:
-            yield item, row
+        if row.get("seed") != str(item_seed(spec.seed, index)) or row.get("file") != item_file(spec, index):
+            continue
+        if file_sha256(out / row["file"]) == row["sha256"]:
+            yield index, row
+
+
+def _stored_spec(out: Path, source: str = "<spec>") -> BatchSpec | None:
+    """The spec copied into the folder (named ``source``), or None if there is none or it does not read."""
+    try:
+        return parse_spec((out / SPEC_COPY).read_text(encoding="utf-8"), source=source)
+    except (OSError, UnicodeDecodeError, BarsynthError):
+        return None
+
+
+def _remove_others(spec: BatchSpec, out: Path, kept: dict[int, dict[str, str]]) -> None:
+    """Remove the folder's item files (only names :func:`item_file` gives, and our temporaries)
+    that are not among ``kept``: an earlier batch's items, which the manifest no longer lists."""
+    keep = {row["file"].rpartition("/")[2] for row in kept.values()}
+    for entry in os.scandir(out / AUDIO_DIR):
+        name = entry.name
+        ours = _AUDIO_NAME.fullmatch(name) or (name.startswith(".barsynth-") and name.endswith(".tmp"))
+        if ours and name not in keep and entry.is_file(follow_symlinks=False):
+            os.unlink(entry.path)
 
 
 def _row_start(spec: BatchSpec, item: Item) -> dict[str, str]:
     """An item's row before rendering: every column present, the features empty."""
     row = dict.fromkeys(FIXED_COLUMNS, "")
-    row.update(id=str(item.index), file=item_file(spec, item.index), seed=str(item.seed))
+    row.update(id=str(item.index), file=item_file(spec, item.index), seed=str(item.seed), rejected=str(item.rejected))
     row.update({name: _text(value) for name, value in item.parameters.items()})
     return row
 
@@ -264,16 +305,53 @@ def _text(value: Any) -> str:
 
 
 def _save(spec: BatchSpec, out: Path, rows: dict[int, dict[str, str]]) -> None:
-    """Write the manifest and the audio-folder metadata (atomically), rows in item order."""
+    """Write the manifest (CSV and Parquet) and the audio-folder metadata (atomically), rows in item order."""
     from ..models import get_model
 
-    columns = list(FIXED_COLUMNS) + list(get_model(spec.model).table.names)
+    table = get_model(spec.model).table
+    columns = list(FIXED_COLUMNS) + list(table.names)
     ordered = [rows[i] for i in sorted(rows)]
     _write_atomically(out / MANIFEST, _csv(columns, ordered))
+    _write_atomically(out / PARQUET, _parquet(table, columns, ordered))
     rendered = [{"file_name": r["file"], **{k: v for k, v in r.items() if k not in ("file", "error")}}
                 for r in ordered if not r["error"]]
     _write_atomically(out / METADATA, _csv(["file_name"] + [c for c in columns if c not in ("file", "error")],
                                            rendered))
+
+
+_INTEGER_COLUMNS = ("id", "seed", "rejected")
+_FLOAT_COLUMNS = ("duration_s", "f0_hz", "t60_s", "centroid_hz")
+
+
+def _parquet(table: Any, columns: list[str], rows: list[dict[str, str]]) -> bytes:
+    """The manifest as a Parquet file: each column typed (whole numbers, floats, bools, text,
+    lists of floats for a list parameter), an empty value null."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from ..parameters import BOOL, FLOATS, INT
+
+    def typed(name: str) -> tuple[Any, Callable[[str], Any]]:
+        kind = table[name].kind if name in table else None
+        if name in _INTEGER_COLUMNS or kind == INT:
+            return pa.int64(), int
+        if name in _FLOAT_COLUMNS or kind == "float":
+            return pa.float64(), float
+        if kind == BOOL:
+            return pa.bool_(), lambda text: text == "true"
+        if kind == FLOATS:
+            return pa.list_(pa.float64()), lambda text: [float(x) for x in text.split(",")]
+        return pa.string(), str
+
+    arrays, fields = [], []
+    for name in columns:
+        kind, parse = typed(name)
+        values = [parse(r[name]) if r.get(name, "") != "" else None for r in rows]
+        arrays.append(pa.array(values, type=kind))
+        fields.append(pa.field(name, kind))
+    sink = io.BytesIO()
+    pq.write_table(pa.Table.from_arrays(arrays, schema=pa.schema(fields)), sink)
+    return sink.getvalue()
 
 
 def _csv(columns: list[str], rows: list[dict[str, str]]) -> bytes:

@@ -41,8 +41,8 @@ def drawable(table: Any) -> tuple[Parameter, ...]:
 
 
 def item_rng(seed: int, index: int) -> np.random.Generator:
-    """The random stream of item ``index`` of a batch seeded ``seed`` (both whole numbers >= 0):
-    the same as ``default_rng(SeedSequence(seed).spawn(index + 1)[index])``."""
+    """The random stream of item ``index``'s draws in a batch seeded ``seed`` (both whole numbers
+    >= 0): the same as ``default_rng(SeedSequence(seed).spawn(index + 1)[index])``."""
     return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(int(index),)))
 
 
@@ -72,9 +72,9 @@ def draw_settings(model: Any, rng: np.random.Generator, *, base: Any = None,
         if p.name not in chosen:
             continue
         if spread is None:
-            changes[p.name] = _within(p, u, (ranges or {}).get(p.name))
+            changes[p.name] = value_within(p, u, (ranges or {}).get(p.name))
         elif spread.get(p.name, 0.0) > 0.0:
-            changes[p.name] = _mutated(p, getattr(start, p.name), u, spread[p.name], rng)
+            changes[p.name] = value_mutated(p, getattr(start, p.name), u, spread[p.name], rng)
     # a material drawn sets E and rho: they are left out then (as table.settings_at does)
     for p in table:
         if p.sets is not None and p.name in changes and changes[p.name] != p.default:
@@ -86,13 +86,13 @@ def draw_settings(model: Any, rng: np.random.Generator, *, base: Any = None,
         if p.kind == FLOATS and not p.data and p.when and not p.default and p.acts_under(resolved) \
                 and not getattr(resolved, p.name):
             count = int(rng.integers(LIST_LENGTHS[0], LIST_LENGTHS[1] + 1))
-            lists[p.name] = tuple(float(_within(p, x, None)) for x in rng.random(count))
+            lists[p.name] = tuple(float(value_within(p, x, None)) for x in rng.random(count))
     if lists:
         resolved = table.changed(resolved, lists)
     return table.as_dict(resolved)
 
 
-def _within(p: Parameter, u: float, span: tuple[float, float] | None) -> Any:
+def value_within(p: Parameter, u: float, span: tuple[float, float] | None) -> Any:
     """The value at ``u`` (0 to 1) along ``p``'s scale, over its range or ``span``."""
     if p.kind in (CHOICE, BOOL) or span is None:
         if p.kind == FLOATS:
@@ -109,7 +109,7 @@ def _within(p: Parameter, u: float, span: tuple[float, float] | None) -> Any:
     return min(hi, max(lo, value))
 
 
-def _mutated(p: Parameter, value: Any, u: float, spread: float, rng: np.random.Generator) -> Any:
+def value_mutated(p: Parameter, value: Any, u: float, spread: float, rng: np.random.Generator) -> Any:
     """``value`` moved by up to ``spread`` of ``p``'s range on its scale (reflected at the ends);
     a choice or bool redrawn among the others with probability ``spread``."""
     if p.kind in (CHOICE, BOOL):
@@ -125,21 +125,24 @@ def _mutated(p: Parameter, value: Any, u: float, spread: float, rng: np.random.G
 
 
 def check_draw(model: Any, settings: Mapping[str, Any], *, sample_rate: float = 48000.0,
-               render_s: float | None = None) -> None:
-    """Raise :class:`ParameterError` (or :class:`SamplesError`) where ``model`` refuses ``settings``
-    at ``sample_rate``: the table's ranges, the model's joint checks when its voice is designed
-    (first the cheap ``constraints`` the model declares next to its table, then
-    :meth:`Model.voice` and :meth:`Model.check_renderable`) and, with ``render_s``, that many
-    seconds rendered with finite samples."""
+               render_s: float | None = None, seed: int | None = 0) -> Any | None:
+    """``model``'s voice for ``settings`` at ``sample_rate`` (seeded ``seed``), ready to render as
+    :meth:`Model.render` would; :class:`ParameterError` (or :class:`SamplesError`) where the model
+    refuses them: the table's ranges, the model's joint checks when its voice is designed (first
+    the cheap ``constraints`` the model declares next to its table, then :meth:`Model.voice` and
+    :meth:`Model.check_renderable`) and, with ``render_s``, that many seconds rendered with finite
+    samples (then None is returned: the voice has played)."""
     resolved = model.resolve(settings)
     for constraint in model.constraints:  # cheap, declared next to the table: before any design
         constraint(resolved, sample_rate)
-    voice = model.voice(settings, sample_rate=sample_rate)
+    voice = model.voice(resolved, sample_rate=sample_rate, seed=seed)
     model.check_renderable(voice)
     if render_s:
         from ..models.rendering import render_voice
 
         render_voice(voice, render_s, normalize=False)  # checks every block (check_samples)
+        return None
+    return voice
 
 
 @dataclass

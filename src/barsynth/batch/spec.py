@@ -59,7 +59,7 @@ from ..checks import show_text, show_value
 from ..errors import BarsynthError, BatchSpecError
 from ..parameters import BOOL, CHOICE, FLOATS, Parameter
 
-__all__ = ["KINDS", "MAX_COUNT", "BatchSpec", "Variation", "load_spec", "parse_spec"]
+__all__ = ["KINDS", "MAX_COUNT", "BatchSpec", "Variation", "load_spec", "parse_spec", "spec_toml"]
 
 KINDS = ("grid", "list", "random", "mutate")
 FORMATS = ("wav", "flac")
@@ -122,6 +122,46 @@ def parse_spec(text: str, *, source: str = "<spec>") -> BatchSpec:
     except tomllib.TOMLDecodeError as exc:
         raise BatchSpecError(f"{source}: not valid TOML: {exc}") from None
     return _Reader(source).read(doc)
+
+
+def spec_toml(spec: BatchSpec) -> str:
+    """``spec`` as TOML text that :func:`parse_spec` reads back to the same spec (its source aside).
+
+    >>> spec = parse_spec('model = "twang"\\ncount = 3\\nseed = 1\\n[vary.q]\\ngrid = [60, 100]\\n')
+    >>> print(spec_toml(spec))
+    model = "twang"
+    count = 3
+    seed = 1
+    sample_rate = 48000.0
+    duration_s = "auto"
+    format = "wav"
+    <BLANKLINE>
+    [vary.q]
+    grid = [60.0, 100.0]
+    <BLANKLINE>
+    >>> parse_spec(spec_toml(spec)) == spec
+    True
+    """
+    lines = [f"model = {_toml(spec.model)}"]
+    if spec.preset is not None:
+        lines.append(f"preset = {_toml(spec.preset)}")
+    lines += [f"{key} = {_toml(getattr(spec, key))}" for key in ("count", "seed", "sample_rate", "duration_s", "format")]
+    for v in spec.vary:
+        value = {"grid": v.values, "list": v.values, "mutate": v.spread}[v.kind] if v.kind != "random" \
+            else (v.values if v.bounds is None else v.bounds)
+        lines += ["", f"[vary.{v.name}]", f"{v.kind} = {_toml(value)}"]
+    return "\n".join(lines) + "\n"
+
+
+def _toml(value: Any) -> str:
+    """One TOML value: text, bool, whole number, float (``repr``: read back exactly) or array."""
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    return repr(value)
 
 
 class _Reader:
