@@ -87,7 +87,7 @@ def test_every_draw_refused_is_a_row_with_its_reason(tmp_path, monkeypatch):
     assert voice is None and item.rejected == 5 and "overhang_m" in item.error and "\n" not in item.error
     (row,) = run_batch(spec, tmp_path, workers=1, features=False)  # (in a worker: 1000 draws)
     assert row["file"] == row["sha256"] == "" and row["rejected"] == "1000"
-    assert row["error"].startswith("1000 drawn settings were all refused, the last: parameters overhang_m")
+    assert row["error"].startswith("1000 drawn settings were all refused, the last: parameter overhang_m")
     assert os.listdir(tmp_path / "audio") == []
 
 
