@@ -87,7 +87,7 @@ def test_every_draw_refused_is_a_row_with_its_reason(tmp_path, monkeypatch):
     assert voice is None and item.rejected == 5 and "overhang_m" in item.error and "\n" not in item.error
     (row,) = run_batch(spec, tmp_path, workers=1, features=False)  # (in a worker: 1000 draws)
     assert row["file"] == row["sha256"] == "" and row["rejected"] == "1000"
-    assert row["error"].startswith("1000 drawn settings were all refused, the last: parameters overhang_m")
+    assert row["error"].startswith("1000 drawn settings were all refused, the last: parameter overhang_m")
     assert os.listdir(tmp_path / "audio") == []
 
 
@@ -151,3 +151,16 @@ def test_the_command_says_how_many_draws_were_refused(tmp_path):
     with open(tmp_path / "out" / "metadata.csv", newline="") as f:
         assert [m["file_name"] for m in csv.DictReader(f)] == ["audio/00000000.flac", "audio/00000001.flac"]
     assert np.all([os.path.getsize(tmp_path / "out" / r["file"]) > 1000 for r in rows.values()])
+
+
+def test_the_docs_spec_reads_and_its_first_items_are_as_described():
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "batch.md").read_text()
+    block = text.split("<!-- batch-spec:begin -->")[1].split("<!-- batch-spec:end -->")[0]
+    spec = parse_spec(block.split("```toml")[1].split("```")[0], source="docs/batch.md")
+    assert spec.count == 1000 and spec.format == "flac" and spec.duration_s == "auto"
+    first = make_items(spec, stop=8)
+    assert [it.values["q"] for it in first] == [60.0, 100.0, 200.0, 400.0] * 2
+    assert [it.values["gain_mapping"] for it in first] == ["linear", "log"] * 4
+    assert all(0.15 <= it.values["length_m"] <= 0.4 for it in first)

@@ -125,13 +125,13 @@ def value_mutated(p: Parameter, value: Any, u: float, spread: float, rng: np.ran
 
 
 def check_draw(model: Any, settings: Mapping[str, Any], *, sample_rate: float = 48000.0,
-               render_s: float | None = None, seed: int | None = 0) -> Any:
+               render_s: float | None = None, seed: int | None = 0) -> Any | None:
     """``model``'s voice for ``settings`` at ``sample_rate`` (seeded ``seed``), ready to render as
     :meth:`Model.render` would; :class:`ParameterError` (or :class:`SamplesError`) where the model
     refuses them: the table's ranges, the model's joint checks when its voice is designed (first
     the cheap ``constraints`` the model declares next to its table, then :meth:`Model.voice` and
     :meth:`Model.check_renderable`) and, with ``render_s``, that many seconds rendered with finite
-    samples (the voice returned is then a fresh one)."""
+    samples (then None is returned: the voice has played)."""
     resolved = model.resolve(settings)
     for constraint in model.constraints:  # cheap, declared next to the table: before any design
         constraint(resolved, sample_rate)
@@ -141,7 +141,7 @@ def check_draw(model: Any, settings: Mapping[str, Any], *, sample_rate: float = 
         from ..models.rendering import render_voice
 
         render_voice(voice, render_s, normalize=False)  # checks every block (check_samples)
-        voice = model.voice(resolved, sample_rate=sample_rate, seed=seed)
+        return None
     return voice
 
 

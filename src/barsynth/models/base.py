@@ -282,8 +282,9 @@ class Model:
     the table, :mod:`barsynth.models.notemap`); the first whose ``when`` holds is used."""
     constraints: ClassVar[tuple[Any, ...]] = ()
     """Joint constraints on settings each in range (:class:`~barsynth.models.constraints.Constraint`,
-    declared next to the table): cheap predicates random draws are filtered by before a voice is
-    designed; the model's own checks stay authoritative."""
+    declared next to the table): cheap rules, each with its one-line refusal, that random draws
+    are filtered by before a voice is designed; the model's own checks stay authoritative (where
+    they check the same rule, they raise the constraint's refusal: one copy)."""
 
     def __init__(self) -> None:
         self._check_exciters()

@@ -6,9 +6,11 @@ own; names, units, ranges and docs stay the same in every model that has them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from ..parameters import CHOICE, FLOATS, Compare, Parameter, Sets
+from .constraints import Constraint
 
 if TYPE_CHECKING:
     from ..exciters import Exciter
@@ -155,6 +157,28 @@ def profile_parameters(note: str = "", when: Any = ()) -> list[Parameter]:
                   f"{note}profile = samples: thickness / thickness_m at equally spaced points from end to end",
                   kind=FLOATS, max_items=64, when=acting({"profile": ("samples",)})),
     ]
+
+
+def profile_constraint(acts: Callable[[Any], bool] | None = None, when: tuple[str, str] | None = None) -> Constraint:
+    """The profile's own check (:class:`~barsynth.physics.profiles.Profile`: ``profile = samples``
+    needs at least two ``profile_samples``) as a joint constraint, where ``acts(p)`` (by default
+    always; ``when``: the row and value that make it act, for the docs): the same check, run on
+    the record, so one copy of it and of its message."""
+    from ..errors import ParameterError
+    from ..physics.profiles import THINNEST
+
+    def refusal(p: Any, sample_rate: float | None) -> str | None:
+        if acts is not None and not acts(p):
+            return None
+        try:
+            profile_of(p)
+        except ParameterError as exc:
+            return str(exc)
+        return None
+
+    where = f"`{when[0]} = {when[1]}` and " if when else ""
+    return Constraint(("profile", "profile_samples", *when[:1]) if when else ("profile", "profile_samples"),
+                      f"{where}`profile = samples`: at least 2 `profile_samples`, each {THINNEST:g} to 1", refusal)
 
 
 def profile_of(p: Any):

@@ -24,6 +24,9 @@ HTTP API (JSON in and out; errors are ``{"error": "one line"}``):
 - ``POST /api/picture`` ``{"model", "parameters", "duration_s", "sample_rate", "width"}``:
   waveform, spectrogram and modes of one strike (:mod:`barsynth.studio.pictures`)
 - ``POST /api/preset-file`` ``{"model", "parameters", "description"}``: a preset file (TOML)
+- ``POST /api/draw`` ``{"model", "mode", "seed", "parameters", "spread", "sample_rate"}``: Randomize
+  (``mode`` ``random``) or Mutate (``mutate``, by ``spread`` of each range) seeded, the settings the
+  model accepts (:mod:`barsynth.studio.variations`)
 - ``POST /api/fit?model=banded|twang|fd&max_modes=N&nominal_hz=HZ&name=FILE&width=W``, the body a
   WAV, FLAC or OGG file's bytes (at most ``MAX_UPLOAD_BYTES``, ``MAX_UPLOAD_S`` long): the
   recording fitted, its settings, the comparison, both sounds and spectrograms
@@ -55,6 +58,7 @@ from .live import DATA_BYTES, MAX_MESSAGE_BYTES, play
 from .pictures import MAX_COLUMNS
 from .presets_file import preset_toml
 from .stream import Stream
+from .variations import draw_json, mode_of, seed_of, spread_of
 from .work import MAX_RENDERS, Workers, fit_json, modes_json, picture_json, render_wav
 
 __all__ = ["MAX_BODY_BYTES", "MAX_RENDERS", "MAX_STREAMS", "MAX_UPLOADS", "MAX_UPLOAD_BYTES", "create_app", "serve"]
@@ -71,7 +75,8 @@ _JS = "text/javascript; charset=utf-8"
 # The page's files (only these are served): app.js and the ES modules it imports, the worklet,
 # the stream's worker and the style sheet.
 _STATIC = {**{name: _JS for name in ("app.js", "page.js", "controls.js", "live.js", "plots.js", "files.js",
-                                    "fit.js", "worklet.js", "link.js", "keys.js")},
+                                    "fit.js", "worklet.js", "link.js", "keys.js", "history.js",
+                                    "variations.js")},
            "style.css": "text/css; charset=utf-8"}
 
 
@@ -283,6 +288,19 @@ def create_app(*, allowed_hosts: Iterable[str] | None = LOCAL_HOSTS, workers: Wo
         text = preset_toml(model.table.as_dict(resolved), description=description, model=model.name)
         return Response(text, media_type="application/toml; charset=utf-8",
                         headers={**_NO_STORE, "Content-Disposition": f'attachment; filename="{model.name}.toml"'})
+
+    @app.post("/api/draw")
+    async def draw(request: Request) -> Response:
+        wish = _fields(await read_json(request, MAX_BODY_BYTES), {"model", "mode", "seed"},
+                       {"parameters", "spread", "sample_rate"})
+        model = _model(wish["model"])
+        mode = mode_of(wish["mode"])
+        seed, spread = seed_of(wish["seed"]), spread_of(wish.get("spread"), mode)
+        resolved = _resolved(model, wish.get("parameters"))
+        rate = _rate(wish.get("sample_rate"))
+        found = await workers.run(draw_json, model.name, model.table.as_dict(resolved), mode, seed, spread, rate,
+                                  gone=request.is_disconnected)
+        return Response(found, media_type="application/json", headers=_NO_STORE)
 
     @app.post("/api/fit")
     async def fit(request: Request) -> Response:

@@ -48,17 +48,17 @@ from functools import lru_cache
 import numpy as np
 
 from ...errors import ParameterError
+from ..constraints import check_constraints
 from .fitting import Chain, fit, fit_band
 from .injection import HIGH_PASS_FRACTION, group_delay, high_pass, injection_filter, resonances
 from .loss import Loss, filter_losses
-from .plan import BAND_BOTTOM, BAND_TOP_FRACTION, BAND_TOP_HZ, Plan, first_turn, make_plans
-from .table import AllpassParams
+from .plan import BAND_BOTTOM, Plan, band_top_hz, first_mode_refusal, first_turn, make_plans
+from .table import CONSTRAINTS, AllpassParams
 from .targets import Bar, Targets
 
 __all__ = ["AllpassDesign", "Filter", "ModeFit", "allpass_design", "design_for"]
 
 LOSS_PASSES = 2  # losses redesigned for the fitted group delays, and the fit refined, this often
-LOWEST_FIRST_MODE_HZ = 1.0  # a bar whose first mode lies lower is refused
 
 
 @dataclass(frozen=True)
@@ -182,13 +182,11 @@ def _fitted(e: float, rho: float, length: float, thickness: float, width: float,
     bar = Bar(bending_wave_constant(e, rho, thickness), length, rho * length * thickness * width, bc, rate)
     f_1 = float(bar_frequencies(youngs_modulus_pa=e, density_kg_m3=rho, length_m=length, thickness_m=thickness,
                                 bc=bc, count=1)[0])
-    top_hz = min(BAND_TOP_FRACTION * rate, BAND_TOP_HZ)
-    if f_1 >= 0.8 * top_hz:
-        raise ParameterError(
-            f"parameters length_m = {length:g}, thickness_m = {thickness:g}, youngs_modulus_pa = {e:g}, "
-            f"density_kg_m3 = {rho:g} put the first mode at {f_1:.0f} Hz; allowed: a bar whose first mode "
-            f"lies below {0.8 * top_hz:.0f} Hz (the fitted band ends at {top_hz:.0f} Hz at sample_rate "
-            f"{rate:g} Hz)")
+    refusal = first_mode_refusal(f_1, rate, youngs_modulus_pa=e, density_kg_m3=rho, length_m=length,
+                                 thickness_m=thickness)
+    if refusal:
+        raise ParameterError(refusal)
+    top_hz = band_top_hz(rate)
     w_1, w_top = 2 * math.pi * f_1 / rate, 2 * math.pi * top_hz / rate
     a, b = sorted((strike, pickup))
     targets = Targets(bar, a, b, float(bar.lam(math.pi)))
@@ -315,17 +313,10 @@ def _from_record(record: dict) -> AllpassDesign:
 
 def design_for(p: AllpassParams, sample_rate: float) -> AllpassDesign:
     """The waveguide for the model's parameters ``p`` at ``sample_rate`` (Hz); cached. Refuses
-    (ParameterError, one line) a bar whose first mode lies below ``LOWEST_FIRST_MODE_HZ`` and an
-    order that gives no stable design."""
-    from ...physics import bar_frequencies
-
-    f_1 = float(bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
-                                length_m=p.length_m, thickness_m=p.thickness_m, bc=p.bc, count=1)[0])
-    if f_1 < LOWEST_FIRST_MODE_HZ:
-        raise ParameterError(
-            f"parameters length_m = {p.length_m:g}, thickness_m = {p.thickness_m:g} put the first mode at "
-            f"{f_1:.3g} Hz; allowed: a bar whose first mode lies at or above {LOWEST_FIRST_MODE_HZ:g} Hz "
-            "(shorter or thicker)")
+    (ParameterError, one line) a bar its declared constraints refuse (its first mode below
+    ``LOWEST_FIRST_MODE_HZ`` or above the fitted band: :data:`.table.CONSTRAINTS`), before any
+    fit, and an order that gives no stable design."""
+    check_constraints(CONSTRAINTS, p, sample_rate)
     design = allpass_design(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
                             length_m=p.length_m, thickness_m=p.thickness_m, width_m=p.width_m, bc=p.bc,
                             allpass_order=p.allpass_order, q=p.q, sample_rate=sample_rate,

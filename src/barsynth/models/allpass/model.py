@@ -8,7 +8,7 @@ from typing import Any
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
 from .design import design_for
-from .table import ALLPASS_EXCITERS, NOTES, TABLE
+from .table import ALLPASS_EXCITERS, CONSTRAINTS, NOTES, TABLE
 from .voice import AllpassVoice
 
 
@@ -20,6 +20,7 @@ class AllpassModel(Model):
                "through fitted dispersion filters, struck or plucked; a measured comparison")
     table = TABLE
     note_maps = NOTES
+    constraints = CONSTRAINTS
     voice_class = AllpassVoice
     exciters = ALLPASS_EXCITERS
 

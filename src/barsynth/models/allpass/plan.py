@@ -31,6 +31,31 @@ from .targets import Bar, Targets
 BAND_TOP_FRACTION = 0.45  # of the sample rate
 BAND_TOP_HZ = 20000.0
 BAND_BOTTOM = 0.9  # the fitted band starts at this fraction of the first mode
+LOWEST_FIRST_MODE_HZ = 1.0  # a bar whose first mode lies lower is refused
+HIGHEST_FIRST_MODE = 0.8  # of the band's top: a bar whose first mode lies higher is refused
+
+
+def band_top_hz(rate: float) -> float:
+    """The top of the fitted band (Hz) at sample rate ``rate``."""
+    return min(BAND_TOP_FRACTION * rate, BAND_TOP_HZ)
+
+
+def first_mode_refusal(f_1: float, rate: float | None, *, youngs_modulus_pa: float, density_kg_m3: float,
+                       length_m: float, thickness_m: float) -> str | None:
+    """The one-line refusal of a bar whose first mode ``f_1`` (Hz) lies below
+    :data:`LOWEST_FIRST_MODE_HZ` or, at sample rate ``rate`` (None: not checked), at or above
+    :data:`HIGHEST_FIRST_MODE` of the fitted band's top; None for a bar the waveguide can fit."""
+    if f_1 < LOWEST_FIRST_MODE_HZ:
+        return (f"parameters length_m = {length_m:g}, thickness_m = {thickness_m:g} put the first mode at "
+                f"{f_1:.3g} Hz; allowed: a bar whose first mode lies at or above {LOWEST_FIRST_MODE_HZ:g} Hz "
+                "(shorter or thicker)")
+    if rate is None or f_1 < HIGHEST_FIRST_MODE * band_top_hz(rate):
+        return None
+    top_hz = band_top_hz(rate)
+    return (f"parameters length_m = {length_m:g}, thickness_m = {thickness_m:g}, youngs_modulus_pa = "
+            f"{youngs_modulus_pa:g}, density_kg_m3 = {density_kg_m3:g} put the first mode at {f_1:.0f} Hz; "
+            f"allowed: a bar whose first mode lies below {HIGHEST_FIRST_MODE * top_hz:.0f} Hz (the fitted band "
+            f"ends at {top_hz:.0f} Hz at sample_rate {rate:g} Hz)")
 SPARE_PHASE = 0.5 * math.pi  # phase each chain keeps for above the band (rad)
 CAPACITY = (1.0, 1.0)  # free parameters (poles) needed per fitted mode, and in all besides
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from ...exciters import STRUCK_OR_PLUCKED, Pluck, Strike
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
 from ...physics.boundary import BOUNDARY_CONDITIONS
+from ..constraints import Constraint
 from ..notemap import EXCITER_VELOCITIES, NoteMap
 from ..rows import bar_size_parameters, excitation_parameter, level_parameter
 
@@ -68,3 +69,23 @@ TABLE = ParameterTable(
 
 NOTES = (NoteMap("length_m", "length", "fitted", {k: v for k, v in EXCITER_VELOCITIES.items() if k != "bow"}),)
 """A note moves the bar's length (material kept); velocity drives the strike or pluck."""
+
+
+def _first_mode(p: AllpassParams, sample_rate: float | None) -> str | None:
+    """:func:`~.plan.first_mode_refusal` of the bar's first mode (closed form: no fit)."""
+    from ...physics import bar_frequencies
+    from .plan import first_mode_refusal
+
+    f_1 = float(bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
+                                length_m=p.length_m, thickness_m=p.thickness_m, bc=p.bc, count=1)[0])
+    return first_mode_refusal(f_1, sample_rate, youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
+                              length_m=p.length_m, thickness_m=p.thickness_m)
+
+
+CONSTRAINTS = (
+    Constraint(("length_m", "thickness_m", "youngs_modulus_pa", "density_kg_m3", "bc"),
+               "the first mode (Euler-Bernoulli, closed form) at or above 1 Hz and below 0.8 x the fitted band's "
+               "top, min(0.45 x sample rate, 20 kHz)", _first_mode),
+)
+"""Joint constraints (:mod:`barsynth.models.constraints`): the first mode in the band the filters are
+fitted over (checked before any fit, 0.1-0.4 s each)."""

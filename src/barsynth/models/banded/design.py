@@ -49,10 +49,8 @@ from ...physics.tuned_bar import TOLERANCE_CENTS, tune_bar
 from .geometry import closed_form, geometry_bar
 from .kernel import LOOP
 from .resonator import TubeCoupling, check_tube_mode, design_coupling, tube_t60s
-from .table import MAX_MODES, MIN_Q, BandedParams
+from .table import LOWEST_HZ, MAX_MODES, MIN_Q, BandedParams
 
-LOWEST_HZ = 20.0
-"""Modes below this are left out (Hz)."""
 BAND_Q = 6.0
 """Quality factor of each loop's band-pass (broad: the sharp resonance is the loop's)."""
 
@@ -203,23 +201,32 @@ def mode_gains(p: BandedParams, count: int) -> np.ndarray:
     return gains
 
 
+def closed_form_frequencies(p: BandedParams) -> np.ndarray | None:
+    """All the object's mode frequencies (Hz) where they come in closed form (``tuning =
+    ratios``, ``physics``, or ``geometry`` of a uniform Euler-Bernoulli bar); None where its
+    grid must be solved (:func:`.geometry.geometry_bar`)."""
+    if p.tuning == "ratios":
+        return p.frequency_hz * np.array(p.mode_ratios)
+    if p.tuning == "geometry" and not closed_form(p):
+        return None
+    return bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
+                           length_m=p.length_m, thickness_m=p.thickness_m, bc="free-free", count=p.mode_count)
+
+
 def mode_table(p: BandedParams) -> tuple[np.ndarray, np.ndarray, float]:
     """Frequencies (Hz), T60s (s) and mass (kg) of all the object's modes (which of them sound
     at a sample rate: :func:`playable`). Raises :class:`ParameterError` for an object that
     cannot ring (no ratios, more T60s than modes, a T60 below Q = ``MIN_Q``)."""
-    if p.tuning == "geometry" and not closed_form(p):
+    freqs = closed_form_frequencies(p)
+    if freqs is None:
         bar = geometry_bar(p)
         freqs, mass = bar.frequencies_hz, bar.mass_kg
     elif p.tuning != "ratios":  # physics, or geometry's uniform Euler-Bernoulli bar
-        freqs = bar_frequencies(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3,
-                                length_m=p.length_m, thickness_m=p.thickness_m, bc="free-free",
-                                count=p.mode_count)
         mass = p.density_kg_m3 * p.length_m * p.thickness_m * p.width_m
     else:
         if not p.mode_ratios:
             raise ParameterError("parameter mode_ratios is empty; allowed: with tuning = ratios, a list of up to "
                                  f"{MAX_MODES} ratios, each 0.25 to 200")
-        freqs = p.frequency_hz * np.array(p.mode_ratios)
         mass = p.mass_kg
     t60s = np.array([p.mode_t60s_s[k] if k < len(p.mode_t60s_s) else p.q * math.log(1000.0) / (math.pi * f)
                      for k, f in enumerate(freqs)])
@@ -237,6 +244,18 @@ def mode_table(p: BandedParams) -> tuple[np.ndarray, np.ndarray, float]:
 def playable(freqs: np.ndarray, sample_rate: float) -> np.ndarray:
     """Which modes sound: from ``LOWEST_HZ`` to a quarter of the sample rate."""
     return (freqs >= LOWEST_HZ) & (freqs <= sample_rate / 4)
+
+
+def band_refusal(p: BandedParams, freqs: np.ndarray, sample_rate: float) -> str | None:
+    """The refusal of an object none of whose modes (``freqs``, Hz) sounds at ``sample_rate``
+    (:func:`playable`); None where one does."""
+    if playable(freqs, sample_rate).any():
+        return None
+    change = "frequency_hz or mode_ratios" if p.tuning == "ratios" else "length_m, thickness_m or the material"
+    return (f"no mode of this object lies between {LOWEST_HZ:g} Hz and a quarter of the sample rate "
+            f"({sample_rate / 4:g} Hz): with tuning = {p.tuning} its modes are at "
+            f"{', '.join(f'{f:.1f}' for f in freqs)} Hz; allowed: a mode in that band (change {change}, "
+            "or the sample rate)")
 
 
 # -- the bank of loops -------------------------------------------------------------------------
@@ -293,10 +312,9 @@ def design_bank(p: BandedParams, sample_rate: float) -> BankDesign:
     check_tube_mode(p, len(freqs))
     t60s = tube_t60s(p, t60s)
     keep = playable(freqs, sample_rate)
-    if not keep.any():
-        raise ParameterError(f"no mode of this object lies between {LOWEST_HZ:g} Hz and a quarter of the "
-                             f"sample rate ({sample_rate / 4:g} Hz): its modes are at "
-                             f"{', '.join(f'{f:.1f}' for f in freqs)} Hz")
+    refusal = band_refusal(p, freqs, sample_rate)
+    if refusal:
+        raise ParameterError(refusal)
     modes = np.flatnonzero(keep)
     count = len(freqs)
     strike = mode_shapes(p, count, p.strike_position)[modes]

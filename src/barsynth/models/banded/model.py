@@ -10,7 +10,7 @@ from ..base import Mode, Model
 from ..rendering import check_sample_rate
 from .design import design_bank, mode_gains, mode_shapes, mode_table, playable
 from .resonator import check_tube_mode, heard_mode, tube_t60s
-from .table import BANDED_EXCITERS, BANDED_TABLE, NOTES, BandedParams
+from .table import BANDED_EXCITERS, BANDED_TABLE, CONSTRAINTS, NOTES, BandedParams
 from .voice import BandedVoice
 
 
@@ -21,6 +21,7 @@ class BandedModel(Model):
     summary = "banded waveguides (Essl & Cook 1999): struck, bowed or plucked bars, tuned bars, glasses, bowls"
     table = BANDED_TABLE
     note_maps = NOTES
+    constraints = CONSTRAINTS
     voice_class = BandedVoice
     exciters = BANDED_EXCITERS
 

@@ -98,11 +98,41 @@ def tube_t60s(p, t60s: np.ndarray) -> np.ndarray:
     return t60s
 
 
+def tube_mode_refusal(p, count: int) -> str | None:
+    """The refusal of a ``tube_mode`` an object of ``count`` modes does not have (None: it has it)."""
+    if p.tube == "on" and p.tube_mode > count:
+        return f"parameter tube_mode = {p.tube_mode} is not allowed for an object of {count} modes; allowed: 1 to {count}"
+    return None
+
+
 def check_tube_mode(p, count: int) -> None:
     """Refuse a ``tube_mode`` the object does not have."""
-    if p.tube == "on" and p.tube_mode > count:
-        raise ParameterError(f"parameter tube_mode = {p.tube_mode} is not allowed for an object of {count} modes; "
-                             f"allowed: 1 to {count}")
+    refusal = tube_mode_refusal(p, count)
+    if refusal:
+        raise ParameterError(refusal)
+
+
+def tube_sounds_refusal(p, freqs: np.ndarray, sounds: bool, sample_rate: float) -> str | None:
+    """The refusal of a tube tuned to a mode (of ``freqs``, Hz) that does not sound at
+    ``sample_rate`` (``sounds``: whether it does)."""
+    if p.tube != "on" or sounds:
+        return None
+    return (f"parameter tube_mode = {p.tube_mode}: that mode ({freqs[p.tube_mode - 1]:.1f} Hz) does not sound at "
+            f"{sample_rate:g} Hz; allowed: a mode that sounds")
+
+
+def tube_for(p, frequency_hz: float, sample_rate: float) -> TubeDesign:
+    """The tube of ``p`` tuned to its mode at ``frequency_hz`` (detuned by ``tube_detune_cents``);
+    refused (one line) where no tube of ``tube_radius_m`` fits at ``sample_rate``."""
+    target = frequency_hz * 2.0 ** (p.tube_detune_cents / 1200.0)
+    try:
+        return design_tube(target, p.tube_radius_m, sample_rate)
+    except ValueError:
+        longest = 343.0 / (4.0 * target) / 0.6
+        raise ParameterError(f"parameter tube_radius_m = {p.tube_radius_m:g} is not allowed for a tube at "
+                             f"{target:.1f} Hz at {sample_rate:g} Hz; allowed: less than {longest:.3g} m (the end "
+                             "correction within a quarter wavelength), with the tube below an eighth of the sample "
+                             "rate") from None
 
 
 def design_coupling(p, freqs: np.ndarray, t60s: np.ndarray, modes: np.ndarray, mouth: np.ndarray,
@@ -115,18 +145,10 @@ def design_coupling(p, freqs: np.ndarray, t60s: np.ndarray, modes: np.ndarray, m
     check_tube_mode(p, len(freqs))
     k = p.tube_mode - 1
     rows = np.flatnonzero(modes == k)
-    if not rows.size:
-        raise ParameterError(f"parameter tube_mode = {p.tube_mode}: that mode ({freqs[k]:.1f} Hz) does not sound at "
-                             f"{sample_rate:g} Hz; allowed: a mode that sounds")
-    target = float(freqs[k]) * 2.0 ** (p.tube_detune_cents / 1200.0)
-    try:
-        design = design_tube(target, p.tube_radius_m, sample_rate)
-    except ValueError:
-        longest = 343.0 / (4.0 * target) / 0.6
-        raise ParameterError(f"parameter tube_radius_m = {p.tube_radius_m:g} is not allowed for a tube at "
-                             f"{target:.1f} Hz at {sample_rate:g} Hz; allowed: less than {longest:.3g} m (the end "
-                             "correction within a quarter wavelength), with the tube below an eighth of the sample "
-                             "rate") from None
+    refusal = tube_sounds_refusal(p, freqs, bool(rows.size), sample_rate)
+    if refusal:
+        raise ParameterError(refusal)
+    design = tube_for(p, float(freqs[k]), sample_rate)
     row = int(rows[0])
     gain = 10.0 ** (p.tube_gain_db / 20.0)
     through = gain * mouth[row] * design.response_to_mode(float(freqs[k]), float(t60s[k]))

@@ -11,14 +11,18 @@ from dataclasses import dataclass
 
 from ...exciters import Bow, Pluck, Sample, Strike
 from ...parameters import CHOICE, FLOATS, INT, Compare, Parameter, ParameterTable
+from ..constraints import Constraint
 from ..notemap import EXCITER_VELOCITIES, ControlCurve, NoteMap
-from ..rows import bar_size_parameters, excitation_parameter, level_parameter, profile_parameters, theory_parameters
+from ..rows import (bar_size_parameters, excitation_parameter, level_parameter, profile_constraint,
+                    profile_parameters, theory_parameters)
 from .resonator import resonator_parameters
 
 MAX_MODES = 24
 """The most modes (loops) an object may have."""
 MIN_Q = 3.0
 """The lowest quality factor of a mode: below it a mode is no ringing loop (see design.py)."""
+LOWEST_HZ = 20.0
+"""Modes below this are left out (Hz)."""
 
 PHYSICS = {"tuning": ("physics",)}
 RATIOS = {"tuning": ("ratios",)}
@@ -160,3 +164,82 @@ NOTES = (NoteMap("frequency_hz", "frequency", None, EXCITER_VELOCITIES, when={"t
          NoteMap("length_m", "length", None, EXCITER_VELOCITIES, controls={1: _MOTOR}))
 """A bar tuned by ratios moves its frequency, one built from its geometry its length (material kept);
 velocity drives the exciter; CC 1 (the modulation wheel) the vibraphone motor's rate."""
+
+
+def _frequencies(p: BandedParams):
+    """The object's mode frequencies (Hz) where they come in closed form, else None."""
+    from .design import closed_form_frequencies
+
+    return closed_form_frequencies(p)
+
+
+def _tube_mode(p: BandedParams, sample_rate: float | None) -> str | None:
+    from .resonator import tube_mode_refusal
+
+    return tube_mode_refusal(p, len(p.mode_ratios) if p.tuning == "ratios" else p.mode_count)
+
+
+def _band(p: BandedParams, sample_rate: float | None) -> str | None:
+    from .design import band_refusal
+
+    freqs = _frequencies(p) if sample_rate is not None else None
+    if freqs is None or not freqs.size:  # (no ratios: the model's own refusal)
+        return None
+    return band_refusal(p, freqs, sample_rate)
+
+
+def _tube_mode_frequency(p: BandedParams, sample_rate: float | None):
+    """The frequency (Hz) of the mode the tube is tuned to, and whether it sounds at
+    ``sample_rate``; None without a tube, a rate, closed-form modes or that mode."""
+    if p.tube != "on" or sample_rate is None:
+        return None
+    freqs = _frequencies(p)
+    if freqs is None or p.tube_mode > freqs.size:
+        return None
+    from .design import playable
+
+    return freqs, bool(playable(freqs, sample_rate)[p.tube_mode - 1])
+
+
+def _tube_sounds(p: BandedParams, sample_rate: float | None) -> str | None:
+    from .resonator import tube_sounds_refusal
+
+    tuned = _tube_mode_frequency(p, sample_rate)
+    return None if tuned is None else tube_sounds_refusal(p, tuned[0], tuned[1], sample_rate)
+
+
+def _tube_fits(p: BandedParams, sample_rate: float | None) -> str | None:
+    from ...errors import ParameterError
+    from .resonator import tube_for
+
+    tuned = _tube_mode_frequency(p, sample_rate)
+    if tuned is None or not tuned[1]:
+        return None
+    try:
+        tube_for(p, float(tuned[0][p.tube_mode - 1]), sample_rate)
+    except ParameterError as exc:
+        return str(exc)
+    return None
+
+
+_MODES = ("tuning", "mode_count", "mode_ratios", "frequency_hz", "length_m", "thickness_m", "youngs_modulus_pa",
+          "density_kg_m3")
+CONSTRAINTS = (
+    Constraint(("tube_mode", "tube", "tuning", "mode_count", "mode_ratios"),
+               "`tube = on`: `tube_mode` at most the object's modes (`mode_count`, or as many as `mode_ratios`)",
+               _tube_mode),
+    profile_constraint(lambda p: p.tuning == "geometry", ("tuning", "geometry")),
+    Constraint(_MODES, f"some mode between {LOWEST_HZ:g} Hz and a quarter of the sample rate (modes in closed form: "
+               "`tuning = ratios`, `physics`, or `geometry` of a uniform Euler-Bernoulli bar)", _band),
+    Constraint(("tube_mode", "tube", *_MODES), f"`tube = on`: the mode `tube_mode` between {LOWEST_HZ:g} Hz and a "
+               "quarter of the sample rate (modes in closed form)", _tube_sounds),
+    Constraint(("tube_radius_m", "tube", "tube_mode", "tube_detune_cents", *_MODES),
+               "`tube = on`: a tube of `tube_radius_m` fits the tuned mode (its end correction, 0.6 x the radius, "
+               "under a quarter wavelength; the tube below an eighth of the sample rate; modes in closed form)",
+               _tube_fits),
+)
+"""Joint constraints (:mod:`barsynth.models.constraints`): the design's checks that need no loop
+designed (each calls the design's own rule: :func:`.resonator.tube_mode_refusal`,
+:func:`.design.band_refusal`, :func:`.resonator.tube_sounds_refusal`, :func:`.resonator.tube_for`,
+the profile's); where the modes need a grid solved (``tuning = geometry`` of a profiled or
+Timoshenko bar) only the tube's mode count and the profile are checked here."""

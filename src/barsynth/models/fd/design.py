@@ -81,19 +81,34 @@ def point_vector(grid: BarGrid | TwoFieldGrid, position: float) -> np.ndarray:
     return rigid_free(grid, vector)
 
 
+def largest_stable_theta(omega: float, oversampling: int, output_rate: float) -> float:
+    """The largest stable theta for a grid whose highest mode is ``omega`` (rad/s), stepped
+    ``oversampling`` times an output sample at ``output_rate`` Hz (inf when any theta is):
+    0.5 + 2 / (Omega k)^2 (Bilbao 2009, ch. 7)."""
+    courant = (omega / (output_rate * oversampling)) ** 2  # (Omega k)^2
+    largest = 0.5 + 2.0 / courant if courant > 0 else math.inf
+    return math.inf if largest >= 1.0 else largest
+
+
+def stability_refusal(p: FdParams, omega: float, output_rate: float) -> str | None:
+    """The refusal of ``p.theta`` above :func:`largest_stable_theta` for a grid whose highest
+    mode is ``omega`` (rad/s); None where it is stable."""
+    largest = largest_stable_theta(omega, p.oversampling, output_rate)
+    if not p.theta > largest:
+        return None
+    steps = f" x {p.oversampling} steps a sample" if p.oversampling > 1 else ""
+    return (f"parameter theta = {p.theta:g} makes the scheme unstable for {p.points} points at {output_rate:g} Hz"
+            f"{steps} (the grid's highest mode is at {omega / (2 * math.pi):.0f} Hz); allowed: theta up to "
+            f"{math.floor(largest * 1e4) / 1e4:.4f}, or fewer points")
+
+
 def check_stability(p: FdParams, grid: BarGrid | TwoFieldGrid, output_rate: float) -> float:
     """The largest stable theta for this grid and step (inf when any is); refuses ``p.theta`` above it."""
     omega = highest_frequency(grid)
-    courant = (omega / (output_rate * p.oversampling)) ** 2  # (Omega k)^2
-    largest = 0.5 + 2.0 / courant if courant > 0 else math.inf
-    if largest >= 1.0:
-        return math.inf
-    if p.theta > largest:
-        steps = f" x {p.oversampling} steps a sample" if p.oversampling > 1 else ""
-        raise ParameterError(f"parameter theta = {p.theta:g} makes the scheme unstable for {p.points} points at "
-                             f"{output_rate:g} Hz{steps} (the grid's highest mode is at {omega / (2 * math.pi):.0f} Hz)"
-                             f"; allowed: theta up to {math.floor(largest * 1e4) / 1e4:.4f}, or fewer points")
-    return largest
+    refusal = stability_refusal(p, omega, output_rate)
+    if refusal:
+        raise ParameterError(refusal)
+    return largest_stable_theta(omega, p.oversampling, output_rate)
 
 
 def decimation_filter(factor: int, output_rate: float) -> np.ndarray:

@@ -10,7 +10,7 @@ import numpy as np
 from ..base import Mode, Model
 from ..rendering import check_sample_rate
 from .design import deflection_mass, point_vector, reference_errors_cents, scheme_modes
-from .table import FD_EXCITERS, FD_TABLE, NOTES
+from .table import CONSTRAINTS, FD_EXCITERS, FD_TABLE, NOTES
 from .voice import FdVoice
 
 MAX_DESCRIBED = 24
@@ -23,6 +23,7 @@ class FdModel(Model):
     summary = "finite-difference bar (implicit theta scheme): any boundary, undercut profiles; struck, bowed, plucked"
     table = FD_TABLE
     note_maps = NOTES
+    constraints = CONSTRAINTS
     voice_class = FdVoice
     exciters = FD_EXCITERS
     reports_reference_errors = True

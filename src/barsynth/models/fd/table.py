@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ...errors import ParameterError
 from ...exciters import BOWED, STRUCK_OR_PLUCKED, Bow, Pluck, Strike
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
 from ...physics.boundary import BOUNDARY_CONDITIONS
+from ..constraints import Constraint
 from ..notemap import EXCITER_VELOCITIES, NoteMap
-from ..rows import bar_size_parameters, excitation_parameter, level_parameter, profile_parameters, theory_parameters
+from ..rows import (bar_size_parameters, excitation_parameter, level_parameter, profile_constraint,
+                    profile_parameters, theory_parameters)
 
 FD_EXCITERS = (Strike, Bow, Pluck)
 """The exciters it offers, in the order of its ``excitation`` choices (the model's ``exciters``)."""
@@ -92,3 +95,29 @@ FD_TABLE = ParameterTable(
 
 NOTES = (NoteMap("length_m", "length", None, EXCITER_VELOCITIES),)
 """A note moves the bar's length (material kept); velocity drives the exciter."""
+
+
+def _unstable(p: FdParams, sample_rate: float | None) -> str | None:
+    """:func:`~.design.stability_refusal` on the bar's grid (no scheme designed), its highest mode
+    from the banded solver, taken a hair (1e-9) low: the bound is then never stricter than the
+    design's own check (:func:`~.design.check_stability`, dense)."""
+    if p.theta <= 0.5 or sample_rate is None:  # stable at any rate (the bound is above 0.5)
+        return None
+    from ...physics.grid import highest_frequency_banded
+    from .design import grid_of, stability_refusal
+
+    try:
+        grid = grid_of(p)
+    except ParameterError:  # no grid: another constraint's refusal (the profile's)
+        return None
+    return stability_refusal(p, highest_frequency_banded(grid) * (1.0 - 1e-9), sample_rate)
+
+
+CONSTRAINTS = (
+    profile_constraint(),
+    Constraint(("theta", "points", "oversampling"),
+               "`theta` <= 0.5, or at most 0.5 + 2 / (Omega k)^2 for the grid's highest mode Omega (rad/s) and the "
+               "step k = 1 / (sample rate x `oversampling`) (Bilbao 2009, ch. 7)", _unstable),
+)
+"""Joint constraints (:mod:`barsynth.models.constraints`): the profile's check and the scheme's
+stability (:func:`~.design.check_stability` on the grid alone: a few ms, no scheme factored)."""

@@ -8,19 +8,15 @@ from typing import Any
 import numpy as np
 from scipy.linalg import eigh
 
-from ...checks import show_value
-from ...errors import ParameterError
 from ..base import Mode, Model
+from ..constraints import check_constraints
 from ..rendering import check_sample_rate
-from ..ruler.design import MIN_NODES_BEYOND, Setup, decay_rate, grid_of, point_row
+from ..ruler.design import Setup, decay_rate, grid_of, point_row
 from ..ruler.kernel import PAD
 from ..ruler.model import describe_engine
 from ..ruler.voice import BAR_FIELDS, EngineVoice
-from .table import KALIMBA_TABLE, NOTES, KalimbaParams
+from .table import CONSTRAINTS, KALIMBA_TABLE, NOTES, KalimbaParams
 
-MAX_PLUCK_FRACTION = 0.3
-"""The pluck point may be pushed down by at most this fraction of its distance from the bridge
-(beyond it the small deflections of the bar equation no longer hold)."""
 TINE_MODES = 4
 """How many modes of the tine on its bridge :meth:`KalimbaModel.describe` gives (from the grid)."""
 BRIDGE_FIELDS = ("edge_m", "edge_stiffness_n_m", "edge_height_m", "edge_two_sided")
@@ -33,23 +29,9 @@ fundamental and the first overtone: with 4 or 8 a softer bridge clicked, 1.7 x t
 def kalimba_setup(p: KalimbaParams) -> Setup:
     """The engine's setup for the tine ``p`` (clamped at its back end, the bridge ``back_length_m``
     in front of the clamp, free at the tip); bad geometry refused in one line."""
+    check_constraints(CONSTRAINTS, p)
     length = p.back_length_m + p.vibrating_length_m
-    dx = length / (p.points - 1)
-    if p.vibrating_length_m < MIN_NODES_BEYOND * dx:
-        raise ParameterError(
-            f"parameter vibrating_length_m = {show_value(p.vibrating_length_m)} m spans "
-            f"{p.vibrating_length_m / dx:.3g} grid cells of {dx * 1000:.3g} mm; allowed: at least "
-            f"{MIN_NODES_BEYOND * dx:.4g} m ({MIN_NODES_BEYOND} cells; or more points)")
-    if p.back_length_m < 2.0 * dx:
-        raise ParameterError(
-            f"parameter back_length_m = {show_value(p.back_length_m)} m is shorter than two grid cells of "
-            f"{dx * 1000:.3g} mm; allowed: at least {2.0 * dx:.4g} m (or more points)")
     reach = p.pluck_position * p.vibrating_length_m
-    if p.pluck_displacement_mm / 1000.0 > MAX_PLUCK_FRACTION * reach:
-        raise ParameterError(
-            f"parameter pluck_displacement_mm = {show_value(p.pluck_displacement_mm)} mm bends the tine too far "
-            f"{reach * 1000:.3g} mm beyond the bridge; allowed: up to {MAX_PLUCK_FRACTION * reach * 1000:.4g} mm "
-            f"({MAX_PLUCK_FRACTION:g} x pluck_position x vibrating_length_m)")
     return Setup(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=length,
                  thickness_m=p.thickness_m, width_m=p.width_m, clamped_back=True, points=p.points,
                  sigma0_per_s=p.sigma0_per_s, q=p.q, edge_m=p.back_length_m, desk_under=False,
@@ -144,6 +126,7 @@ class KalimbaModel(Model):
     summary = "a finite-difference kalimba tine, clamped behind a bridge it presses on, plucked near the tip (spec 9.4)"
     table = KALIMBA_TABLE
     note_maps = NOTES
+    constraints = CONSTRAINTS
     voice_class = KalimbaVoice
 
     def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:

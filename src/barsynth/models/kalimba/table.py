@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ...checks import show_value
 from ...parameters import CHOICE, INT, Parameter, ParameterTable
+from ..constraints import Constraint
 from ..notemap import NoteMap, VelocityCurve
 from ..rows import level_parameter, resized_bar_parameters
+from ..ruler.design import MIN_NODES_BEYOND
 
 BRIDGES = ("one-sided", "pinned")
 """How the bridge holds the tine: pressed onto it from above (it may lift off), or both ways."""
@@ -85,3 +88,53 @@ KALIMBA_TABLE = ParameterTable(
 
 NOTES = (NoteMap("vibrating_length_m", "length", "tine on bridge", {None: VelocityCurve("pluck_displacement_mm", 0.2, 3.0)}),)
 """A note moves the tine's vibrating length; velocity the pluck's displacement (mm)."""
+
+MAX_PLUCK_FRACTION = 0.3
+"""The pluck point may be pushed down by at most this fraction of its distance from the bridge
+(beyond it the small deflections of the bar equation no longer hold)."""
+
+
+def cell_m(p: KalimbaParams) -> float:
+    """The grid's cell (m): the whole tine, clamp to tip, over ``points - 1``."""
+    return (p.back_length_m + p.vibrating_length_m) / (p.points - 1)
+
+
+def _vibrating_cells(p: KalimbaParams, sample_rate: float | None) -> str | None:
+    dx = cell_m(p)
+    if p.vibrating_length_m >= MIN_NODES_BEYOND * dx:
+        return None
+    return (f"parameter vibrating_length_m = {show_value(p.vibrating_length_m)} m spans "
+            f"{p.vibrating_length_m / dx:.3g} grid cells of {dx * 1000:.3g} mm; allowed: at least "
+            f"{MIN_NODES_BEYOND * dx:.4g} m ({MIN_NODES_BEYOND} cells; or more points)")
+
+
+def _back_cells(p: KalimbaParams, sample_rate: float | None) -> str | None:
+    dx = cell_m(p)
+    if p.back_length_m >= 2.0 * dx:
+        return None
+    return (f"parameter back_length_m = {show_value(p.back_length_m)} m is shorter than two grid cells of "
+            f"{dx * 1000:.3g} mm; allowed: at least {2.0 * dx:.4g} m (or more points)")
+
+
+def _pluck(p: KalimbaParams, sample_rate: float | None) -> str | None:
+    reach = p.pluck_position * p.vibrating_length_m
+    if p.pluck_displacement_mm / 1000.0 <= MAX_PLUCK_FRACTION * reach:
+        return None
+    return (f"parameter pluck_displacement_mm = {show_value(p.pluck_displacement_mm)} mm bends the tine too far "
+            f"{reach * 1000:.3g} mm beyond the bridge; allowed: up to {MAX_PLUCK_FRACTION * reach * 1000:.4g} mm "
+            f"({MAX_PLUCK_FRACTION:g} x pluck_position x vibrating_length_m)")
+
+
+CONSTRAINTS = (
+    Constraint(("vibrating_length_m", "back_length_m", "points"),
+               f"`vibrating_length_m` >= {MIN_NODES_BEYOND} grid cells of (`back_length_m` + "
+               "`vibrating_length_m`) / (`points` - 1)", _vibrating_cells),
+    Constraint(("back_length_m", "vibrating_length_m", "points"),
+               "`back_length_m` >= 2 grid cells of (`back_length_m` + `vibrating_length_m`) / (`points` - 1)",
+               _back_cells),
+    Constraint(("pluck_displacement_mm", "pluck_position", "vibrating_length_m"),
+               f"`pluck_displacement_mm` <= {MAX_PLUCK_FRACTION:g} x `pluck_position` x `vibrating_length_m` "
+               "(in mm)", _pluck),
+)
+"""Joint constraints (:mod:`barsynth.models.constraints`): every check of
+:func:`~.model.kalimba_setup` (closed forms, no design)."""

@@ -8,44 +8,21 @@ from typing import Any
 import numpy as np
 
 from ...checks import show_value
-from ...errors import ParameterError
 from ..base import Mode, Model
+from ..constraints import check_constraints
 from ..rendering import check_sample_rate
-from .design import EDGE_LENGTH_M, MIN_NODES_BEYOND, Setup, decay_rate, desk_modes_for
+from .design import EDGE_LENGTH_M, Setup, decay_rate, desk_modes_for
 from .table import CONSTRAINTS, NOTES, RULER_TABLE, RulerParams
 from .voice import EngineVoice
 
-MAX_TIP_FRACTION = 0.3
-"""The tip may be bent down by at most this fraction of the overhang (beyond it the small
-deflections of the bar equation no longer hold)."""
 MODES_PER_CANTILEVER = 6
 
 
 def ruler_setup(p: RulerParams) -> Setup:
     """The engine's setup for the ruler ``p``; bad geometry refused in one line."""
-    if not p.overhang_m < p.length_m:
-        raise ParameterError(f"parameter overhang_m = {show_value(p.overhang_m)} m is not shorter than the ruler "
-                             f"(length_m = {show_value(p.length_m)} m); allowed: less than length_m")
+    check_constraints(CONSTRAINTS, p)
     edge = p.length_m - p.overhang_m
-    if not p.finger_distance_m < edge:
-        raise ParameterError(f"parameter finger_distance_m = {show_value(p.finger_distance_m)} m puts the finger "
-                             f"beyond the ruler's back end; allowed: less than length_m - overhang_m = "
-                             f"{edge:.6g} m")
-    dx = p.length_m / (p.points - 1)
-    beyond = p.overhang_m - p.slide_m
-    if beyond < MIN_NODES_BEYOND * dx:
-        named = (f"parameters overhang_m = {show_value(p.overhang_m)} m and slide_m = {show_value(p.slide_m)} m leave"
-                 if p.slide_m > 0 else f"parameter overhang_m = {show_value(p.overhang_m)} m leaves")
-        left = f"{beyond * 100:.3g} cm beyond the edge" if beyond > 0 else "nothing beyond the edge"
-        raise ParameterError(f"{named} {left}{' after the slide' if p.slide_m > 0 else ''}: "
-                             f"{max(beyond, 0.0) / dx:.3g} grid cells of {dx * 1000:.3g} mm (points = {p.points}); "
-                             f"allowed: at least {MIN_NODES_BEYOND} grid cells, overhang_m - slide_m >= "
-                             f"{MIN_NODES_BEYOND * dx:.4g} m (a longer overhang_m, a shorter slide_m or more points)")
     tip = p.tip_displacement_mm / 1000.0
-    if tip > MAX_TIP_FRACTION * p.overhang_m:
-        raise ParameterError(f"parameter tip_displacement_mm = {show_value(p.tip_displacement_mm)} mm bends the "
-                             f"{p.overhang_m * 100:.3g} cm overhang too far; allowed: up to "
-                             f"{MAX_TIP_FRACTION * p.overhang_m * 1000:.4g} mm ({MAX_TIP_FRACTION:g} x overhang_m)")
     return Setup(youngs_modulus_pa=p.youngs_modulus_pa, density_kg_m3=p.density_kg_m3, length_m=p.length_m,
                  thickness_m=p.thickness_m, width_m=p.width_m, clamped_back=False, points=p.points,
                  sigma0_per_s=p.sigma0_per_s, q=p.q, edge_m=edge, desk_under=True,

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ...checks import show_value
 from ...parameters import CHOICE, INT, Parameter, ParameterTable, Sets
 from ..constraints import Constraint
 from ..notemap import NoteMap, VelocityCurve
 from ..rows import level_parameter, resized_bar_parameters
+from .design import MIN_NODES_BEYOND
 from .desk import DESK_NAMES, DESKS
 
 
@@ -108,11 +110,57 @@ NOTES = (NoteMap("overhang_m", "length", "short cantilever",
                  {None: VelocityCurve("tip_displacement_mm", 0.02, 0.25, 1.0, per="overhang_m", factor=1000.0)}),)
 """A note moves the overhang (finger distance kept); velocity bends the tip by 2-25 % of the overhang."""
 
+MAX_TIP_FRACTION = 0.3
+"""The tip may be bent down by at most this fraction of the overhang (beyond it the small
+deflections of the bar equation no longer hold)."""
+
+
+def _overhang(p: RulerParams, sample_rate: float | None) -> str | None:
+    if p.overhang_m < p.length_m:
+        return None
+    return (f"parameter overhang_m = {show_value(p.overhang_m)} m is not shorter than the ruler "
+            f"(length_m = {show_value(p.length_m)} m); allowed: less than length_m")
+
+
+def _finger(p: RulerParams, sample_rate: float | None) -> str | None:
+    edge = p.length_m - p.overhang_m
+    if p.finger_distance_m < edge:
+        return None
+    return (f"parameter finger_distance_m = {show_value(p.finger_distance_m)} m puts the finger beyond the "
+            f"ruler's back end; allowed: less than length_m - overhang_m = {edge:.6g} m")
+
+
+def _cells_beyond(p: RulerParams, sample_rate: float | None) -> str | None:
+    dx = p.length_m / (p.points - 1)
+    beyond = p.overhang_m - p.slide_m
+    if beyond >= MIN_NODES_BEYOND * dx:
+        return None
+    named = (f"parameters overhang_m = {show_value(p.overhang_m)} m and slide_m = {show_value(p.slide_m)} m leave"
+             if p.slide_m > 0 else f"parameter overhang_m = {show_value(p.overhang_m)} m leaves")
+    left = f"{beyond * 100:.3g} cm beyond the edge" if beyond > 0 else "nothing beyond the edge"
+    return (f"{named} {left}{' after the slide' if p.slide_m > 0 else ''}: "
+            f"{max(beyond, 0.0) / dx:.3g} grid cells of {dx * 1000:.3g} mm (points = {p.points}); "
+            f"allowed: at least {MIN_NODES_BEYOND} grid cells, overhang_m - slide_m >= "
+            f"{MIN_NODES_BEYOND * dx:.4g} m (a longer overhang_m, a shorter slide_m or more points)")
+
+
+def _tip(p: RulerParams, sample_rate: float | None) -> str | None:
+    if p.tip_displacement_mm / 1000.0 <= MAX_TIP_FRACTION * p.overhang_m:
+        return None
+    return (f"parameter tip_displacement_mm = {show_value(p.tip_displacement_mm)} mm bends the "
+            f"{p.overhang_m * 100:.3g} cm overhang too far; allowed: up to "
+            f"{MAX_TIP_FRACTION * p.overhang_m * 1000:.4g} mm ({MAX_TIP_FRACTION:g} x overhang_m)")
+
+
 CONSTRAINTS = (
-    Constraint(("overhang_m", "length_m"), "overhang_m less than length_m",
-               lambda p, rate: p.overhang_m < p.length_m),
-    Constraint(("finger_distance_m", "length_m", "overhang_m"), "finger_distance_m less than length_m - overhang_m "
-               "(the finger on the ruler)", lambda p, rate: p.finger_distance_m < p.length_m - p.overhang_m),
+    Constraint(("overhang_m", "length_m"), "`overhang_m` < `length_m`", _overhang),
+    Constraint(("finger_distance_m", "length_m", "overhang_m"),
+               "`finger_distance_m` < `length_m` - `overhang_m` (the finger on the ruler)", _finger),
+    Constraint(("overhang_m", "slide_m", "length_m", "points"),
+               f"`overhang_m` - `slide_m` >= {MIN_NODES_BEYOND} grid cells of `length_m` / (`points` - 1) "
+               "(the part beyond the edge, after the slide)", _cells_beyond),
+    Constraint(("tip_displacement_mm", "overhang_m"),
+               f"`tip_displacement_mm` <= {MAX_TIP_FRACTION:g} x `overhang_m` (in mm)", _tip),
 )
-"""Joint constraints (:mod:`barsynth.models.constraints`): the two of :func:`~.model.ruler_setup`'s
-geometry checks that need no design (the grid-cell and rest checks need the grid and statics)."""
+"""Joint constraints (:mod:`barsynth.models.constraints`): :func:`~.model.ruler_setup`'s geometry
+checks, all of them closed forms (the rest on the supports needs the statics: a design check)."""

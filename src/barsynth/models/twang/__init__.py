@@ -60,8 +60,8 @@ Examples
 """
 
 from .design import GROUPS
-from .model import AUDIBLE_MIN_HZ, MODEL, TwangModel
-from .table import TWANG_TABLE, TwangParams
+from .model import MODEL, TwangModel
+from .table import AUDIBLE_MIN_HZ, TWANG_TABLE, TwangParams
 from .voice import CONTROL_FRAME_S, SMOOTHING_TIME_S, TwangVoice
 
 __all__ = ["AUDIBLE_MIN_HZ", "CONTROL_FRAME_S", "GROUPS", "MODEL", "SMOOTHING_TIME_S", "TWANG_TABLE",

@@ -4,14 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from ...errors import ParameterError
 from ..base import Mode, Model
+from ..constraints import check_constraints
 from ..rendering import check_sample_rate
 from .design import design_modes
-from .table import NOTES, TWANG_TABLE
+from .table import CONSTRAINTS, NOTES, TWANG_TABLE
 from .voice import TwangVoice
-
-AUDIBLE_MIN_HZ = 20.0  # an offline render needs one mode at least this high
 
 
 class TwangModel(Model):
@@ -21,6 +19,7 @@ class TwangModel(Model):
     summary = "ruler twanged over a desk edge (Selfridge et al., AES 2022)"
     table = TWANG_TABLE
     note_maps = NOTES
+    constraints = CONSTRAINTS
     voice_class = TwangVoice
 
     def describe(self, parameters: Any = None, *, sample_rate: float = 48000.0) -> list[Mode]:
@@ -29,14 +28,8 @@ class TwangModel(Model):
 
     def check_renderable(self, voice: TwangVoice) -> None:
         """A ruler none of whose modes is audible (all below 20 Hz, at or above Nyquist, or
-        at zero gain) would render silence: refused."""
-        modes = design_modes(voice.parameters, sample_rate=voice.sample_rate)
-        if not any(m.frequency_hz >= AUDIBLE_MIN_HZ for m in modes):
-            raise ParameterError(
-                f"parameters put every mode of this ruler below {AUDIBLE_MIN_HZ:g} Hz, at or above "
-                f"Nyquist ({voice.sample_rate / 2:g} Hz) or at zero gain; allowed: settings with "
-                "at least one audible mode (change length, thickness or material, or the sample_rate)"
-            )
+        at zero gain) would render silence: refused (its declared constraint)."""
+        check_constraints(CONSTRAINTS, voice.parameters, voice.sample_rate)
 
 
 MODEL = TwangModel()

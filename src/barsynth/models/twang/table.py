@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...parameters import BOOL, CHOICE, Compare, Parameter, ParameterTable
+from ..constraints import Constraint
 from ..notemap import ControlCurve, NoteMap, VelocityCurve
 from ..rows import material_parameter
 
@@ -114,3 +115,29 @@ NOTES = (NoteMap("length_m", "length", "short-cantilever", {None: VelocityCurve(
                  controls={1: ControlCurve("vibrato_rate_hz", 0.0, 8.0)}),)
 """A note moves the ruler's overhang (its short cantilever's pitch); velocity the level (dB); CC 1
 (the modulation wheel) the vibrato's rate (0: none)."""
+
+AUDIBLE_MIN_HZ = 20.0  # an offline render needs one mode at least this high
+
+
+def _audible(p: TwangParams, sample_rate: float | None) -> str | None:
+    """The refusal of a ruler none of whose modes is audible at ``sample_rate`` (its modes at the
+    trigger, :func:`~.design.design_modes`: closed forms, microseconds)."""
+    if sample_rate is None:
+        return None
+    from .design import design_modes
+
+    if any(m.frequency_hz >= AUDIBLE_MIN_HZ for m in design_modes(p, sample_rate=sample_rate)):
+        return None
+    return (f"parameters length_m = {p.length_m:g} m, thickness_m = {p.thickness_m:g} m, youngs_modulus_pa = "
+            f"{p.youngs_modulus_pa:g} Pa, density_kg_m3 = {p.density_kg_m3:g} kg/m^3 put every mode of this ruler "
+            f"below {AUDIBLE_MIN_HZ:g} Hz, at or above Nyquist ({sample_rate / 2:g} Hz) or at zero gain; allowed: "
+            "settings with at least one audible mode (change length, thickness or material, or the sample_rate)")
+
+
+CONSTRAINTS = (
+    Constraint(("length_m", "thickness_m", "youngs_modulus_pa", "density_kg_m3", "short_length_ratio",
+                "full_cantilever_gain", "short_cantilever_gain", "free_bar_gain"),
+               f"some mode at or above {AUDIBLE_MIN_HZ:g} Hz, below Nyquist and at a gain above 0", _audible),
+)
+"""Joint constraints (:mod:`barsynth.models.constraints`): one mode audible (the model's
+:meth:`~.model.TwangModel.check_renderable` raises this constraint's refusal)."""

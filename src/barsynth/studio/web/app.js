@@ -14,14 +14,26 @@ import { onChange } from "./controls.js";
 import { chooseModel, choosePreset, download, savePreset, share } from "./files.js";
 import { play, queueSet, release, setVolume, stop, trigger, updateLive } from "./live.js";
 import { startFitting } from "./fit.js";
+import { newHistory, record, recall, redo, store, swap, undo } from "./history.js";
 import { keyDown, startKeys } from "./keys.js";
 import { $, api, clearMessage, current, element, failed, showMessage, studio, typing } from "./page.js";
 import { followSize, redrawSpectrogram, schedulePicture } from "./plots.js";
+import { draw, linkedDraw, startVariations } from "./variations.js";
 
-// Keys: space or t strikes, r releases a bow stroke, s or Escape stops (not while typing in a box);
-// while the keys play notes (k), their letters are notes (keys.js).
+// Keys: space or t strikes, r releases a bow stroke, s or Escape stops, x switches between the
+// A and B snapshots, Ctrl+Z undoes and Ctrl+Shift+Z (or Ctrl+Y) redoes (not while typing in a
+// box); while the keys play notes (k), their letters are notes (keys.js).
 function onKey(event) {
   if (keyDown(event)) return;
+  if ((event.ctrlKey || event.metaKey) && !event.altKey && !typing(event)) {
+    const key = event.key.toLowerCase();
+    if (key === "z" || key === "y") {
+      event.preventDefault();
+      if (key === "z" && !event.shiftKey) undo();
+      else redo();
+    }
+    return;
+  }
   if (event.ctrlKey || event.metaKey || event.altKey || event.repeat) return;
   const target = event.target;
   const tag = target.tagName;
@@ -39,6 +51,8 @@ function onKey(event) {
     release();
   } else if (key === "s") {
     stop();
+  } else if (key === "x") {
+    swap();
   }
 }
 
@@ -55,8 +69,17 @@ async function init() {
   $("model").addEventListener("change", () => chooseModel($("model").value).catch(failed));
   $("preset").addEventListener("change", () => {
     clearMessage();
-    choosePreset($("preset").value).catch(failed);
+    choosePreset($("preset").value).catch(failed).then(record);
   });
+  $("controls").addEventListener("change", record);  // a control settled (a slider let go): one step
+  startVariations();
+  $("undo").addEventListener("click", undo);
+  $("redo").addEventListener("click", redo);
+  for (const key of ["a", "b"]) {
+    $(`store-${key}`).addEventListener("click", () => store(key));
+    $(`recall-${key}`).addEventListener("click", () => recall(key));
+  }
+  $("swap-ab").addEventListener("click", swap);
   $("spec-scale").addEventListener("change", redrawSpectrogram);
   document.addEventListener("keydown", onKey);
   startKeys();
@@ -85,6 +108,9 @@ async function init() {
   }
   const name = models.has(wanted) ? wanted : data.models[0].name;
   await chooseModel(name, { preset: query.get("preset"), overrides: models.has(wanted) ? query : null });
+  const drawn = models.has(wanted) ? linkedDraw(query) : null;  // random=SEED or mutate=SEED&spread=S
+  if (drawn) await draw(drawn.mode, drawn.seed, drawn.spread, { step: false });
+  newHistory();
   studio.ready = true;
 }
 

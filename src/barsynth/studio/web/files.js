@@ -1,12 +1,14 @@
 // barsynth studio: settings in and out: models and presets loaded (GET /api/models/.../presets/...),
 // the settings of the last fit (fit.js) loaded as a preset is, WAV files (POST /api/render) and
 // preset files (POST /api/preset-file) saved, and a link to the current settings (the model, the
-// preset and what differs from it, in the address; not a data row's samples: they come with the
+// preset and what differs from it, in the address, and the seed of the last Randomize or Mutate
+// (variations.js) while its settings are unchanged; not a data row's samples: they come with the
 // preset, and a fitted attack does not go into a link).
 
 import { buildControls, defaults, showAll, typed } from "./controls.js";
+import { newHistory, record } from "./history.js";
 import { restart } from "./live.js";
-import { $, RATE, api, clearMessage, current, element, failed, listText, same, studio } from "./page.js";
+import { $, LINK_WORDS, RATE, api, clearMessage, current, element, failed, listText, same, studio } from "./page.js";
 import { schedulePicture } from "./plots.js";
 
 // --- models and presets ------------------------------------------------------------------------
@@ -15,7 +17,9 @@ import { schedulePicture } from "./plots.js";
 export const FITTED = "(fitted)";
 
 export async function chooseModel(name, wanted = {}) {
+  const before = current.model;
   current.model = current.models.get(name);
+  current.draw = null;
   studio.model = name;
   $("model").value = name;
   $("summary").textContent = current.model.summary;
@@ -26,6 +30,8 @@ export async function chooseModel(name, wanted = {}) {
     ...current.model.presets.map((p) => element("option", { value: p }, p)));
   buildControls();
   await choosePreset(wanted.preset || "", wanted.overrides);  // an unknown one: the server's message
+  if (before === current.model) record();  // (a fit's settings for the model shown: one step)
+  else newHistory();
 }
 
 // A preset's values (or the defaults, or the last fit's: FITTED) in every control. A link leaves
@@ -58,7 +64,7 @@ export async function choosePreset(name, overrides) {
   showAll();
   if (overrides) {
     for (const [key, text] of overrides) {
-      if (key !== "model" && key !== "preset") await typed(key, text);
+      if (!LINK_WORDS.has(key)) await typed(key, text);
     }
   }
   restart();
@@ -114,14 +120,24 @@ function valueText(v) {
   return String(v);
 }
 
+// The link: the model, the preset and what differs from it; after a Randomize or Mutate whose
+// settings are unchanged since, what differed when it drew, and its seed (and spread).
 function shareUrl() {
   const query = new URLSearchParams();
   query.set("model", current.model.name);
   if (studio.preset) query.set("preset", studio.preset);
-  for (const row of current.model.parameters) {  // (a data row's thousands of samples stay out of a link)
-    if (!row.data && !same(current.values[row.name], current.base[row.name])) {
-      query.set(row.name, valueText(current.values[row.name]));
+  const rows = current.model.parameters;
+  const draw = current.draw;
+  const drawn = draw && rows.every((row) => same(current.values[row.name], draw.result[row.name]));
+  const values = drawn ? draw.from : current.values;
+  for (const row of rows) {  // (a data row's thousands of samples stay out of a link)
+    if (!row.data && !same(values[row.name], current.base[row.name])) {
+      query.set(row.name, valueText(values[row.name]));
     }
+  }
+  if (drawn) {
+    query.set(draw.mode, String(draw.seed));
+    if (draw.mode === "mutate") query.set("spread", String(draw.spread));
   }
   return `${location.origin}${location.pathname}?${query}`;
 }

@@ -9,7 +9,10 @@
 // (sockets opened) and closes (closed by the server or the network), lastPicture and errors;
 // also inactive (the names of the controls greyed out because they have no effect now) and fit
 // (the last fit of a recording and its A/B player: see fit.js), keys (the notes played: see keys.js)
-// and liveSamples(count) (the newest samples the worklet played: see live.js).
+// and liveSamples(count) (the newest samples the worklet played: see live.js); draws (Randomize
+// and Mutate answered) and lastDraw ({mode, seed, spread, rejected}: see variations.js), history
+// ({undo, redo}: steps that can be undone and redone) and ab ({a, b, showing}: whether each
+// snapshot holds settings, and which one the settings are now: "a", "b" or ""; see history.js).
 
 export const $ = (id) => document.getElementById(id);
 
@@ -40,6 +43,10 @@ export const studio = {
   lastPicture: null,
   pictures: 0,
   errors: [],
+  draws: 0,
+  lastDraw: null,
+  history: { undo: 0, redo: 0 },
+  ab: { a: false, b: false, showing: "" },
   fit: { state: "idle", fits: 0, result: null, playing: null, plays: { recording: 0, resynthesis: 0 },
     heardPeak: { recording: 0, resynthesis: 0 } },
 };
@@ -52,7 +59,11 @@ export const current = {
   base: {},  // the chosen preset's values (or the table's defaults): what a link leaves out
   values: {},  // the current, accepted values
   fitted: null,  // the last fit's settings: {model, values, label, description} (fit.js)
+  draw: null,  // the last Randomize or Mutate: {mode, seed, spread, from, result} (variations.js)
 };
+
+// The words of a link that are not parameters: the model, the preset, and a draw (variations.js).
+export const LINK_WORDS = new Set(["model", "preset", "random", "mutate", "spread"]);
 
 // --- messages and the server ---------------------------------------------------------------
 
