@@ -23,6 +23,19 @@ with Dask's default workers, and "tuned" with :data:`barsynth.batch.cluster.WORK
 cost about 30 % of a render). ``--repeat``: best of N per setting.
 The machine's load average is printed before and after: on a shared machine the ratios are
 only as good as the second core is free.
+
+Measured on the 2-core development machine (shared; load average 0.5 at the start, best of 2,
+the end-to-end rates: the marginal ones swing with the load):
+
+    local, 1 worker        10.3 items/s
+    local, 2 workers       18.3 items/s   1.78x local 1 (1.85x and 1.79x in two other runs)
+    dask, 1 worker          7.4 items/s   (Dask's default workers: profiler, malloc trimming)
+    dask, 2 workers        15.5 items/s   1.50x local 1, 2.10x dask 1
+    dask tuned, 1 worker   10.0 items/s
+    dask tuned, 2 workers  20.5 items/s   1.99x local 1, 2.05x dask tuned 1
+
+(the local runs include starting the pool, about 1 s; the Dask workers are warm). With a load
+average of 3 to 8 from other work, the 2-worker ratios fell to 0.7x-1.4x.
 """
 
 from __future__ import annotations
