@@ -49,37 +49,40 @@ def _stop(proc: subprocess.Popen) -> None:
             pass
 
 
-@pytest.fixture(scope="module")
-def cluster(tmp_path_factory):
-    """``dask scheduler`` and two ``dask worker`` processes (one thread each) on 127.0.0.1,
-    importing this barsynth, the second with the recommended WORKER_ENVIRONMENT; yields a
-    connected client."""
-    from distributed import Client
-
+def _start_cluster(work: Path, workers: int, procs: list) -> str:
+    """``dask scheduler`` and ``workers`` ``dask worker`` processes (one thread each) on
+    127.0.0.1, importing this barsynth, the second with the recommended WORKER_ENVIRONMENT
+    (appended to ``procs``); returns the scheduler's address."""
     from barsynth.batch.cluster import WORKER_ENVIRONMENT
 
-    work = tmp_path_factory.mktemp("dask")
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(SRC), os.environ.get("PYTHONPATH")])))
-    common = {"env": env, "cwd": work, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL,
-              "start_new_session": True}
+    common = {"cwd": work, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "start_new_session": True}
+    scheduler_file = work / "scheduler.json"
+    procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                   "--port", "0", "--no-dashboard", "--scheduler-file", str(scheduler_file)],
+                                  env=env, **common))
+    for _ in range(600):
+        if scheduler_file.exists() and scheduler_file.stat().st_size:
+            break
+        assert procs[0].poll() is None, "the scheduler stopped"
+        time.sleep(0.05)
+    address = json.loads(scheduler_file.read_text())["address"]
+    for i in range(workers):
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
+                                       "--nthreads", "1", "--nworkers", "1", "--host", "127.0.0.1",
+                                       "--no-dashboard", "--name", f"w{i}", "--local-directory", str(work / f"w{i}")],
+                                      env=dict(env, **(WORKER_ENVIRONMENT if i else {})), **common))
+    return address
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """A scheduler and two workers on loopback (:func:`_start_cluster`); yields a connected client."""
+    from distributed import Client
+
     procs = []
     try:
-        scheduler_file = work / "scheduler.json"
-        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                                       "--port", "0", "--no-dashboard", "--scheduler-file", str(scheduler_file)],
-                                      **common))
-        for _ in range(600):
-            if scheduler_file.exists() and scheduler_file.stat().st_size:
-                break
-            assert procs[0].poll() is None, "the scheduler stopped"
-            time.sleep(0.05)
-        address = json.loads(scheduler_file.read_text())["address"]
-        for i in range(2):
-            procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
-                                           "--nthreads", "1", "--nworkers", "1", "--host", "127.0.0.1",
-                                           "--no-dashboard", "--name", f"w{i}",
-                                           "--local-directory", str(work / f"w{i}")],
-                                          **dict(common, env=dict(env, **(WORKER_ENVIRONMENT if i else {})))))
+        address = _start_cluster(tmp_path_factory.mktemp("dask"), 2, procs)
         client = Client(address, timeout=30, set_as_default=False)
         client.wait_for_workers(2, timeout=60)
         try:
@@ -256,3 +259,63 @@ def test_ctrl_c_on_the_client_cancels_the_clusters_work(cluster, tmp_path):
     rows = read_manifest(out / MANIFEST)
     assert rows and all(file_sha256(out / r["file"]) == r["sha256"] for r in rows.values())
     assert not cluster.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks))
+
+
+def test_a_lost_scheduler_ends_the_command_in_one_line(tmp_path):
+    """The scheduler killed mid-batch: status 2, one line, and the manifest holds what finished."""
+    from distributed import Client
+
+    procs = []
+    try:
+        address = _start_cluster(tmp_path, 1, procs)
+        with Client(address, timeout=30, set_as_default=False) as client:
+            client.wait_for_workers(1, timeout=60)
+        spec_path, out = tmp_path / "many.toml", tmp_path / "out"
+        spec_path.write_text(SPEC.format(count=400))
+        proc = subprocess.Popen([sys.executable, "-m", "barsynth", "batch", str(spec_path), "-o", str(out),
+                                 "--dask-scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                env=dict(os.environ, PYTHONPATH=str(SRC)), start_new_session=True)
+        procs.append(proc)
+        for _ in range(1200):  # until a few chunks are written (at most 60 s)
+            if (out / AUDIO_DIR).is_dir() and len(os.listdir(out / AUDIO_DIR)) >= 40:
+                break
+            time.sleep(0.05)
+        os.killpg(procs[0].pid, signal.SIGKILL)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        for p in reversed(procs):
+            _stop(p)
+    lines = err.decode().strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, err.decode()
+    assert lines[0] == f"barsynth: error: the Dask scheduler at {address} dropped the batch's work " \
+                      "(the connection lost?)"
+    rows = read_manifest(out / MANIFEST)
+    assert rows and all(file_sha256(out / r["file"]) == r["sha256"] for r in rows.values())
+
+
+@pytest.mark.parametrize("failure, words", [
+    ("killed", "a chunk of items was on 4 Dask workers that died \\(the last tcp://10.0.0.9:1234\\)"),
+    ("cancelled", "the Dask scheduler at .* dropped the batch's work"),
+])
+def test_work_the_cluster_gave_up_is_one_line(cluster, tmp_path, monkeypatch, failure, words):
+    """(The failure made up: a chunk whose workers all died, or a future the scheduler dropped.)"""
+    import concurrent.futures
+    from types import SimpleNamespace
+
+    from distributed import KilledWorker
+
+    from barsynth.batch.cluster import DaskPool
+    from barsynth.errors import BarsynthError
+
+    def submit(self, fn, *args, **kwargs):
+        future = concurrent.futures.Future()
+        if failure == "killed":
+            future.set_exception(KilledWorker("render_chunk-1", SimpleNamespace(address="tcp://10.0.0.9:1234"), 3))
+        else:
+            future.cancel()
+            future.set_running_or_notify_cancel()
+        return future
+
+    monkeypatch.setattr(DaskPool, "submit", submit)
+    with pytest.raises(BarsynthError, match=words):
+        run_batch(parse_spec(SPEC.format(count=2), source="b.toml"), tmp_path / "out", scheduler=cluster)

@@ -1545,10 +1545,10 @@ def batch(spec_path, out_dir, workers, resume, scheduler):
                              "made if missing")
     client = None
     if scheduler is not None:  # (connected before anything is written)
-        from .batch.cluster import connect
+        from .batch.cluster import connect, disconnect
 
         client = connect(scheduler)
-        click.get_current_context().call_on_close(client.close)
+        click.get_current_context().call_on_close(lambda: disconnect(client))
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

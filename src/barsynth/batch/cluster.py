@@ -52,7 +52,8 @@ from typing import Any
 from ..checks import show_text
 from ..errors import BarsynthError, ParameterError
 
-__all__ = ["CONNECT_TIMEOUT_S", "WORKER_ENVIRONMENT", "DaskPool", "connect", "dask_pool", "task_cancelled"]
+__all__ = ["CONNECT_TIMEOUT_S", "WORKER_ENVIRONMENT", "DaskPool", "connect", "dask_pool", "disconnect",
+           "task_cancelled"]
 
 CONNECT_TIMEOUT_S = 10.0  # how long the client tries to reach the scheduler
 WORKER_ENVIRONMENT = {  # for `dask worker` (see the module's docstring): as fast as the local pool
@@ -123,15 +124,29 @@ def dask_pool(scheduler: Any, out_dir: Any) -> Iterator[DaskPool]:
     """A :class:`DaskPool` on ``scheduler`` (an address, connected here and closed after, or a
     connected ``distributed.Client``, left open), once every worker is seen to run this barsynth
     version and to share ``out_dir``."""
+    from distributed import KilledWorker
+
     client = connect(scheduler) if isinstance(scheduler, str) else scheduler
     try:
         _check_workers(client, Path(out_dir))
-        pool = DaskPool(client)
         with _quiet_distributed():
-            yield pool
+            yield DaskPool(client)
+    except KilledWorker as exc:
+        raise BarsynthError(f"a chunk of items was on {exc.allowed_failures + 1} Dask workers that died "
+                            f"(the last {show_text(exc.last_worker.address)}); the scheduler gave it up: see the "
+                            "workers' logs (memory?)") from None
+    except concurrent.futures.CancelledError:
+        raise BarsynthError(f"the Dask scheduler at {show_text(client.scheduler.address)} dropped the batch's work "
+                            "(the connection lost?)") from None
     finally:
         if client is not scheduler:
-            client.close()
+            disconnect(client)
+
+
+def disconnect(client: Any) -> None:
+    """Close ``client`` without Dask's log of a scheduler already gone."""
+    with _quiet_distributed():
+        client.close()
 
 
 def task_cancelled() -> bool:
@@ -189,14 +204,17 @@ def _probe(marker: str) -> tuple[bool, str]:
 
 @contextmanager
 def _quiet_distributed() -> Iterator[None]:
-    """Dask's client logs a warning per lost worker and a failed connection; the batch reports
+    """Dask's client logs a lost worker or scheduler (with a traceback); the batch reports
     through its own errors and progress instead."""
     import logging
 
-    logger = logging.getLogger("distributed")
-    level = logger.level
-    logger.setLevel(logging.ERROR)
+    loggers = [logging.getLogger(name) for name in list(logging.root.manager.loggerDict)
+               if name == "distributed" or name.startswith("distributed.")]  # (some have their own level)
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL)
     try:
         yield
     finally:
-        logger.setLevel(level)
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
