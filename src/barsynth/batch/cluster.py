@@ -1,4 +1,4 @@
-"""A batch's items rendered on a Dask cluster (spec 11.3): ``barsynth batch --dask-scheduler ADDRESS``.
+r"""A batch's items rendered on a Dask cluster (spec 11.3): ``barsynth batch --dask-scheduler ADDRESS``.
 
 The client connects to a running ``dask.distributed`` scheduler and submits the items in
 chunks, exactly as the local pool gets them (:func:`barsynth.batch.run.render_chunk`). Each
