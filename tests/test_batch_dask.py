@@ -319,3 +319,20 @@ def test_work_the_cluster_gave_up_is_one_line(cluster, tmp_path, monkeypatch, fa
     monkeypatch.setattr(DaskPool, "submit", submit)
     with pytest.raises(BarsynthError, match=words):
         run_batch(parse_spec(SPEC.format(count=2), source="b.toml"), tmp_path / "out", scheduler=cluster)
+
+
+def test_resume_on_the_cluster_renders_only_what_is_missing(cluster, local_run, tmp_path):
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(local_run, out)
+    missing = sorted((out / AUDIO_DIR).iterdir())[3:7]
+    kept = {p.name: p.stat().st_mtime_ns for p in (out / AUDIO_DIR).iterdir() if p not in missing}
+    for path in missing:
+        path.unlink()
+    done = []
+    run_batch(parse_spec(SPEC.format(count=COUNT), source="b.toml"), out, resume=True, scheduler=cluster,
+              progress=lambda n, total: done.append(n))
+    assert done[0] == COUNT - 4 and done[-1] == COUNT
+    assert {p.name: p.stat().st_mtime_ns for p in (out / AUDIO_DIR).iterdir() if p.name in kept} == kept
+    assert _tree(out) == _tree(local_run)
