@@ -34,8 +34,10 @@ the end-to-end rates: the marginal ones swing with the load):
     dask tuned, 1 worker   10.0 items/s
     dask tuned, 2 workers  20.5 items/s   1.99x local 1, 2.05x dask tuned 1
 
-(the local runs include starting the pool, about 1 s; the Dask workers are warm). With a load
-average of 3 to 8 from other work, the 2-worker ratios fell to 0.7x-1.4x.
+(the local runs include starting the pool, about 1 s; the Dask workers are warm). A second
+run (load 1.2): local 10.1 and 18.6 items/s (1.84x), dask 8.3 and 16.1 (1.60x local 1), dask
+tuned 10.9 and 19.5 (1.93x local 1). With a load average of 3 to 8 from other work, the
+2-worker ratios fell to 0.7x-1.4x.
 """
 
 from __future__ import annotations
@@ -79,7 +81,7 @@ def measure(label: str, count: int, repeat: int, work: Path, **how) -> tuple[flo
     whole_s = min(one_run(count, work / f"{label}-{i}".replace(" ", "_"), **how) for i in range(repeat))
     half_s = min(one_run(half, work / f"{label}-half-{i}".replace(" ", "_"), **how) for i in range(repeat))
     rate, marginal = count / whole_s, (count - half) / (whole_s - half_s) if whole_s > half_s else float("nan")
-    print(f"{label:<16} {rate:6.2f} items/s end to end   {marginal:6.2f} items/s marginal "
+    print(f"{label:<22} {rate:6.2f} items/s end to end   {marginal:6.2f} items/s marginal "
           f"({count} in {whole_s:.2f} s, {half} in {half_s:.2f} s)", flush=True)
     return rate, marginal
 
@@ -150,7 +152,7 @@ def main() -> None:
                  for n in (1, 2)}
         dask = {} if args.no_dask else {tuned: dask_runs(args.count, args.repeat, work / str(tuned), tuned)
                                         for tuned in (False, True)}
-    print(f"local 2 / local 1:  {local[2][0] / local[1][0]:.2f}x end to end, {local[2][1] / local[1][1]:.2f}x marginal "
+    print(f"local 2 / local 1: {local[2][0] / local[1][0]:.2f}x end to end, {local[2][1] / local[1][1]:.2f}x marginal "
           "(target >= 1.8x)")
     for tuned, runs in dask.items():
         name = "dask tuned" if tuned else "dask"
