@@ -293,6 +293,24 @@ def test_a_lost_scheduler_ends_the_command_in_one_line(tmp_path):
     assert rows and all(file_sha256(out / r["file"]) == r["sha256"] for r in rows.values())
 
 
+def test_a_scheduler_without_workers_is_one_line_after_a_wait(tmp_path, monkeypatch):
+    from barsynth.batch import cluster as cluster_module
+    from barsynth.errors import BarsynthError
+
+    monkeypatch.setattr(cluster_module, "WORKERS_TIMEOUT_S", 1.0)
+    procs = []
+    try:
+        address = _start_cluster(tmp_path, 0, procs)
+        with pytest.raises(BarsynthError) as info:
+            run_batch(parse_spec(SPEC.format(count=2)), tmp_path / "out", scheduler=address)
+    finally:
+        for p in reversed(procs):
+            _stop(p)
+    assert str(info.value) == f"no Dask worker is connected to the scheduler at {address} (waited 1 s); " \
+                              "start some with: dask worker ADDRESS --nthreads 1"
+    assert read_manifest(tmp_path / "out" / MANIFEST) == {}
+
+
 @pytest.mark.parametrize("failure, words", [
     ("killed", "a chunk of items was on 4 Dask workers that died \\(the last tcp://10.0.0.9:1234\\)"),
     ("cancelled", "the Dask scheduler at .* dropped the batch's work"),

@@ -56,6 +56,7 @@ __all__ = ["CONNECT_TIMEOUT_S", "WORKER_ENVIRONMENT", "DaskPool", "connect", "da
            "task_cancelled"]
 
 CONNECT_TIMEOUT_S = 10.0  # how long the client tries to reach the scheduler
+WORKERS_TIMEOUT_S = 60.0  # how long a batch waits for a first worker on a scheduler that has none
 WORKER_ENVIRONMENT = {  # for `dask worker` (see the module's docstring): as fast as the local pool
     "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
     "DASK_DISTRIBUTED__NANNY__PRE_SPAWN_ENVIRON": "{'MALLOC_TRIM_THRESHOLD_': 134217728, "
@@ -172,6 +173,13 @@ def _check_workers(client: Any, out: Path) -> None:
     client just wrote in ``out``."""
     from .. import __version__
 
+    if not client.scheduler_info().get("workers"):
+        try:
+            client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
+        except TimeoutError:
+            raise BarsynthError(f"no Dask worker is connected to the scheduler at "
+                                f"{show_text(client.scheduler.address)} (waited {WORKERS_TIMEOUT_S:g} s); start "
+                                "some with: dask worker ADDRESS --nthreads 1") from None
     marker = out.absolute() / f".barsynth-shared-{uuid.uuid4().hex}.tmp"
     marker.write_bytes(b"")
     try:

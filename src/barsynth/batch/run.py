@@ -111,29 +111,38 @@ def render_chunk(spec: BatchSpec, indices: list[int], out_dir: str, features: bo
     task whose client cancelled it."""
     from .cluster import task_cancelled
 
+    global _RENDERING
     rows = []
     base = base_parameters(spec)
-    for index in indices:
-        if _STOPPED:
-            raise KeyboardInterrupt
-        if task_cancelled():
-            raise RuntimeError("cancelled by the client")  # (its result is never read)
-        rows.append(render_item(spec, index, out_dir, features, base=base))
+    _RENDERING = True
+    try:
+        for index in indices:
+            if _STOPPED:
+                raise KeyboardInterrupt
+            if task_cancelled():
+                raise RuntimeError("cancelled by the client")  # (its result is never read)
+            rows.append(render_item(spec, index, out_dir, features, base=base))
+    finally:
+        _RENDERING = False
     return rows
 
 
 _STOPPED = False  # a pool worker's: a Ctrl-C has arrived
+_RENDERING = False  # a pool worker's: inside render_chunk (where a Ctrl-C may interrupt)
 
 
 def _worker_start() -> None:
     """In each pool process: a Ctrl-C interrupts the item it renders (its temporary file is
-    removed) and stops it taking more."""
+    removed) and stops it taking more. Outside a chunk it only sets the flag: an interrupt
+    while the worker waits for work or sends a result would end the process with a
+    traceback on the terminal (multiprocessing prints it); the pool's shutdown ends it."""
     import signal
 
     def stop(signum: int, frame: Any) -> None:
         global _STOPPED
         _STOPPED = True
-        raise KeyboardInterrupt
+        if _RENDERING:
+            raise KeyboardInterrupt
 
     signal.signal(signal.SIGINT, stop)
 
