@@ -105,6 +105,10 @@ BASE = 'model = "twang"\ncount = 4\nseed = 1\n'
     (BASE + "[vary.q]\nmutate = 1.5\n", ["vary.q.mutate = 1.5", "above 0 and at most 1"]),
     (BASE + "[vary.material]\nmutate = 0.1\n", ["vary.material.mutate", "mutate is for numbers"]),
     ("model = 'twang\n", ["not valid TOML"]),
+    (BASE + "[vary.material]\nlist = ['steel', 'custom']\n[vary.youngs_modulus_pa]\ngrid = [1e9, 2e9]\n",
+     ["vary.material and vary.youngs_modulus_pa", "material = 'steel' sets youngs_modulus_pa", "vary one of them"]),
+    (BASE + "[vary.density_kg_m3]\nmutate = 0.1\n[vary.material]\nrandom = true\n",
+     ["vary.material and vary.density_kg_m3", "sets density_kg_m3"]),
 ])
 def test_a_bad_spec_is_refused_in_one_line_naming_file_key_and_value(text, words):
     with pytest.raises(BatchSpecError) as info:
@@ -177,6 +181,11 @@ def test_random_draws_are_uniform_on_the_tables_scale():
     length = np.array([draw_value(table["length_m"], spec.vary[2], 0.3, rng) for _ in range(4000)])
     assert abs(np.mean(thick < math.sqrt(0.002 * 0.004)) - 0.5) < 0.03
     assert abs(np.mean(length < 0.275) - 0.5) < 0.03
+
+
+def test_a_custom_material_and_its_modulus_may_both_vary():
+    spec = parse_spec(BASE + "[vary.material]\nlist = ['custom']\n[vary.youngs_modulus_pa]\ngrid = [1e9, 2e9]\n")
+    assert [item.parameters["youngs_modulus_pa"] for item in make_items(spec)] == [1e9, 2e9, 1e9, 2e9]
 
 
 def test_a_material_on_a_grid_sets_its_modulus():

@@ -198,6 +198,7 @@ class _Reader:
         if not isinstance(vary, dict):
             raise self.fail("vary", vary, "a table of [vary.NAME] tables")
         variations = tuple(self.variation(model.table, pname, entry) for pname, entry in vary.items())
+        self.no_clash(model.table, variations)
         return BatchSpec(model=name, preset=preset, count=count, seed=seed, sample_rate=sample_rate,
                          duration_s=duration_s, format=fmt, vary=variations, source=self.source)
 
@@ -265,6 +266,22 @@ class _Reader:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 < value <= 1.0:
             raise self.fail(key, value, "a fraction of the range, above 0 and at most 1")
         return Variation(name, kind, spread=float(value))
+
+    def no_clash(self, table: Any, variations: tuple[Variation, ...]) -> None:
+        """Refuse a choice that sets other parameters (a material: its modulus and density)
+        varied together with one of them, where a value it can take sets it: every such item
+        would be refused when it is made (mid-run, in a worker)."""
+        varied = {v.name for v in variations}
+        for v in variations:
+            row = table[v.name]
+            if row.sets is None:
+                continue
+            clash = sorted(set(row.sets.names) & varied)
+            setting = [x for x in v.values if row.sets.values(x, row.default)]
+            if clash and setting:
+                raise BatchSpecError(f"{self.source}: vary.{v.name} and vary.{clash[0]}: {v.name} = "
+                                     f"{show_value(setting[0])} sets {' and '.join(clash)}; allowed: vary one of "
+                                     f"them (or {v.name} = {show_value(row.default)} only)")
 
     def value(self, row: Parameter, key: str, position: int, value: Any) -> Any:
         try:
