@@ -116,6 +116,17 @@ def test_resume_keeps_nothing_of_another_spec_and_a_new_run_replaces_the_old_ite
     assert len(read_manifest(work / MANIFEST)) == 6
 
 
+def test_a_folder_that_held_no_batch_keeps_files_named_like_items(tmp_path):
+    (tmp_path / "audio").mkdir()
+    (tmp_path / "audio" / "20240101.wav").write_bytes(b"a recording of mine")
+    (tmp_path / "audio" / "00000007.flac").write_bytes(b"another")
+    spec = parse_spec('model = "twang"\ncount = 1\nseed = 1\nduration_s = 0.05\n', source="s.toml")
+    (row,) = run_batch(spec, tmp_path, workers=1, features=False)
+    assert sorted(os.listdir(tmp_path / "audio")) == ["00000000.wav", "00000007.flac", "20240101.wav"]
+    assert (tmp_path / "audio" / "20240101.wav").read_bytes() == b"a recording of mine"
+    assert file_sha256(tmp_path / row["file"]) == row["sha256"]
+
+
 def test_the_spec_copy_reads_back_to_the_same_spec():
     spec = parse_spec(TUBES, source="tubes.toml")
     assert parse_spec(spec_toml(spec), source="tubes.toml") == spec

@@ -168,9 +168,10 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
     ``if __name__ == "__main__":`` (``barsynth batch`` and notebooks need nothing).
     """
     out = Path(out_dir)
+    earlier = (out / SPEC_COPY).is_file() or (out / MANIFEST).is_file()  # (a batch's folder: its files are ours)
     (out / AUDIO_DIR).mkdir(parents=True, exist_ok=True)
     rows: dict[int, dict[str, str]] = dict(_kept(spec, out)) if resume else {}
-    _remove_others(spec, out, rows)
+    _remove_others(spec, out, rows, earlier)
     if spec_text is not None or _stored_spec(out, source=spec.source) != spec:  # (a copy of this very spec is left as it is)
         _write_atomically(out / SPEC_COPY, (spec_toml(spec) if spec_text is None else spec_text).encode("utf-8"))
     todo = [index for index in range(spec.count) if index not in rows]
@@ -291,13 +292,15 @@ def _stored_spec(out: Path, source: str = "<spec>") -> BatchSpec | None:
         return None
 
 
-def _remove_others(spec: BatchSpec, out: Path, kept: dict[int, dict[str, str]]) -> None:
+def _remove_others(spec: BatchSpec, out: Path, kept: dict[int, dict[str, str]], earlier: bool = True) -> None:
     """Remove the folder's item files (only names :func:`item_file` gives, and our temporaries)
-    that are not among ``kept``: an earlier batch's items, which the manifest no longer lists."""
+    that are not among ``kept``: an earlier batch's items, which the manifest no longer lists.
+    Unless the folder held an ``earlier`` batch (its spec copy or manifest), only our temporaries:
+    a folder of someone's own recordings named like items keeps them."""
     keep = {row["file"].rpartition("/")[2] for row in kept.values()}
     for entry in os.scandir(out / AUDIO_DIR):
         name = entry.name
-        ours = _AUDIO_NAME.fullmatch(name) or (name.startswith(_TMP_PREFIX) and name.endswith(_TMP_SUFFIX))
+        ours = (earlier and _AUDIO_NAME.fullmatch(name)) or (name.startswith(_TMP_PREFIX) and name.endswith(_TMP_SUFFIX))
         if ours and name not in keep and entry.is_file(follow_symlinks=False):
             os.unlink(entry.path)
 
