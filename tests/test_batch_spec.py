@@ -333,9 +333,13 @@ def test_a_bad_spec_exits_2_in_one_line_and_writes_nothing(tmp_path, text, words
     assert not (tmp_path / "out").exists()
 
 
-def test_ctrl_c_stops_the_pool_and_leaves_no_partial_file(tmp_path):
+@pytest.mark.parametrize("whom", ["group", "command"])
+def test_ctrl_c_stops_the_pool_and_leaves_no_partial_file(tmp_path, whom):
     """The command interrupted mid-batch: status 130 in one line, no temporary file, and every
-    item in the manifest has its file with its hash (what --resume trusts)."""
+    item in the manifest has its file with its hash (what --resume trusts); every file written
+    is in the manifest. ``whom``: a terminal's Ctrl-C (the command and its workers) or a
+    SIGINT to the command alone (kill -INT; the workers' chunks were rendered to the end, then
+    none of their items listed)."""
     import signal
     import subprocess
     import sys
@@ -353,7 +357,10 @@ def test_ctrl_c_stops_the_pool_and_leaves_no_partial_file(tmp_path):
             if (out / "audio").is_dir() and len(os.listdir(out / "audio")) >= 50:
                 break
             time.sleep(0.05)
-        os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the command and its workers
+        if whom == "group":
+            os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the command and its workers
+        else:
+            os.kill(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
@@ -363,3 +370,4 @@ def test_ctrl_c_stops_the_pool_and_leaves_no_partial_file(tmp_path):
     assert names and not [n for n in names if n.startswith(".")] and len(names) < 300
     rows = read_manifest(out / MANIFEST)
     assert rows and all(file_sha256(out / r["file"]) == r["sha256"] for r in rows.values())
+    assert sorted(f"audio/{n}" for n in names) == sorted(r["file"] for r in rows.values())

@@ -97,18 +97,21 @@ def render_item(spec: BatchSpec, index: int, out_dir: str, features: bool = True
     buffer = io.BytesIO()
     soundfile.write(buffer, samples, int(spec.sample_rate), format=_FORMATS[spec.format], subtype=SUBTYPE)
     data = buffer.getvalue()
-    _write_atomically(Path(out_dir) / row["file"], data)
     row["sha256"] = hashlib.sha256(data).hexdigest()
     row["duration_s"] = _text(samples.size / spec.sample_rate)
     if features:
-        row.update(_features(samples, spec.sample_rate))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (the analysis's overflows on a long decay: empty features)
+            row.update(_features(samples, spec.sample_rate))
+    _write_atomically(Path(out_dir) / row["file"], data)  # last: a Ctrl-C after it finds the row ready
     return row
 
 
 def render_chunk(spec: BatchSpec, indices: list[int], out_dir: str, features: bool = True) -> list[dict[str, str]]:
     """:func:`render_item` for each of ``indices`` in turn (one task of the pool); after a Ctrl-C
-    the worker starts no more items (a chunk already queued ends at once), nor does a Dask
-    task whose client cancelled it."""
+    the worker starts no more items (a chunk already queued ends at once) and the rows of the
+    items it finished are returned (the one interrupted has neither row nor file), nor does a
+    Dask task whose client cancelled it."""
     from .cluster import task_cancelled
 
     global _RENDERING
@@ -118,10 +121,14 @@ def render_chunk(spec: BatchSpec, indices: list[int], out_dir: str, features: bo
     try:
         for index in indices:
             if _STOPPED:
-                raise KeyboardInterrupt
+                break
             if task_cancelled():
                 raise RuntimeError("cancelled by the client")  # (its result is never read)
             rows.append(render_item(spec, index, out_dir, features, base=base))
+    except KeyboardInterrupt:
+        _RENDERING = False
+        if not _STOPPED:  # (not a pool worker's Ctrl-C)
+            raise
     finally:
         _RENDERING = False
     return rows
@@ -204,12 +211,29 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
                             for row in future.result():
                                 finished(row)
                 except BaseException:
+                    _interrupt_workers(pool)  # (a Ctrl-C the command alone got: kill -INT, a notebook)
                     pool.shutdown(wait=True, cancel_futures=True)
+                    for future in pending:  # the items finished meanwhile are in the manifest too
+                        if future.done() and not future.cancelled() and future.exception() is None:
+                            for row in future.result():
+                                rows[int(row["id"])] = row
                     raise
             _remove_temporaries(out / AUDIO_DIR)  # (a lost worker's)
     finally:  # (a Ctrl-C too: what is finished is in the manifest, for --resume)
         _save(spec, out, rows)
     return [rows[i] for i in sorted(rows)]
+
+
+def _interrupt_workers(pool: Any) -> None:
+    """Send a Ctrl-C to a local pool's processes (each ends the item it renders, as on a
+    terminal's Ctrl-C, which reaches them anyway); nothing for a Dask pool."""
+    import signal
+
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            os.kill(process.pid, signal.SIGINT)
+        except (OSError, AttributeError):
+            pass
 
 
 @contextmanager
