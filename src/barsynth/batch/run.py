@@ -101,7 +101,7 @@ def render_item(spec: BatchSpec, index: int, out_dir: str, features: bool = True
     row["duration_s"] = _text(samples.size / spec.sample_rate)
     if features:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # (the analysis's overflows on a long decay: empty features)
+            warnings.simplefilter("ignore")  # (the analysis overflows on some long decays: not for the terminal)
             row.update(_features(samples, spec.sample_rate))
     _write_atomically(Path(out_dir) / row["file"], data)  # last: a Ctrl-C after it finds the row ready
     return row
