@@ -204,3 +204,16 @@ def test_the_constraints_table_in_the_docs_is_generated_from_the_models():
     doc = (Path(__file__).parents[1] / "docs" / "batch-sampler-notes.md").read_text(encoding="utf-8")
     inside = doc.split("<!-- constraints:begin -->\n", 1)[1].split("<!-- constraints:end -->", 1)[0]
     assert inside == constraints_markdown([get_model(n) for n in MODELS])
+
+
+def test_a_whole_number_row_draws_each_value_alike():
+    """tube_mode over [1, 4]: each of 1, 2, 3, 4 a quarter of the time (rounding a uniform
+    number gave 1 and 4 a sixth each, 2 and 3 a third)."""
+    from barsynth.batch.sampler import value_within
+
+    row = get_model("banded").table["tube_mode"]
+    u = np.random.default_rng(0).random(40000)
+    counts = np.bincount([value_within(row, x, (1, 4)) for x in u], minlength=5)[1:]
+    assert np.all(np.abs(counts / u.size - 0.25) < 0.01), counts
+    whole = np.bincount([value_within(row, x, None) for x in u[:24000]], minlength=25)[1:]
+    assert whole.min() > 0.8 * 1000 and whole.max() < 1.2 * 1000, whole  # 1 to 24 alike

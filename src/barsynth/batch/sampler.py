@@ -25,7 +25,7 @@ import numpy as np
 
 from ..checks import show_value
 from ..errors import ParameterError, SamplesError
-from ..parameters import BOOL, CHOICE, FLOATS, Parameter
+from ..parameters import BOOL, CHOICE, FLOATS, INT, Parameter
 
 MAX_ATTEMPTS = 1000
 """Draws tried for one item before giving up (a ruler drawn over its whole table is refused
@@ -93,7 +93,15 @@ def draw_settings(model: Any, rng: np.random.Generator, *, base: Any = None,
 
 
 def value_within(p: Parameter, u: float, span: tuple[float, float] | None) -> Any:
-    """The value at ``u`` (0 to 1) along ``p``'s scale, over its range or ``span``."""
+    """The value at ``u`` (0 to 1) along ``p``'s scale, over its range or ``span``; a whole-number
+    row takes each whole number of the span with the same chance (rounding a uniform number
+    would give its two ends half the chance of the others)."""
+    if p.kind == INT:
+        lo, hi = (p.minimum, p.maximum) if span is None else (p.validate(x) for x in span)
+        if lo > hi:
+            raise ParameterError(f"parameter {p.name}: random range {show_value(span)} runs backwards; allowed: "
+                                 f"low <= high, each {p.range_text()}")
+        return int(lo + min(hi - lo, math.floor(u * (hi - lo + 1))))
     if p.kind in (CHOICE, BOOL) or span is None:
         if p.kind == FLOATS:
             lo, hi = p.minimum, p.maximum
