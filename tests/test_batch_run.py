@@ -17,7 +17,7 @@ from barsynth.batch.progress import BatchProgress
 from barsynth.batch.run import MANIFEST, PARQUET, file_sha256, read_manifest, run_batch
 from barsynth.batch.sampler import check_draw
 from barsynth.batch.spec import parse_spec, spec_toml
-from barsynth.errors import ParameterError
+from barsynth.errors import BatchSpecError, ParameterError
 from barsynth.models import get_model
 
 TUBES = """model = "banded"
@@ -91,7 +91,7 @@ def test_every_draw_refused_is_a_row_with_its_reason(tmp_path, monkeypatch):
     assert os.listdir(tmp_path / "audio") == []
 
 
-def test_resume_keeps_nothing_of_another_spec_and_a_new_run_replaces_the_old_items(tubes, tmp_path):
+def test_resume_refuses_another_spec_and_a_new_run_replaces_the_old_items(tubes, tmp_path):
     spec, out, rows = tubes
     work = tmp_path / "w"
     (work / "audio").mkdir(parents=True)
@@ -109,7 +109,9 @@ def test_resume_keeps_nothing_of_another_spec_and_a_new_run_replaces_the_old_ite
     assert sorted(os.listdir(work / "audio")) == [f"0000000{i}.flac" for i in range(4)] + ["mine.wav", "notes.txt"]
     other = parse_spec(TUBES.replace("seed = 2", "seed = 3"), source="tubes.toml")
     calls.clear()
-    rows3 = run_batch(other, work, workers=1, resume=True, features=False, progress=lambda d, t: calls.append((d, t)))
+    with pytest.raises(BatchSpecError, match="cannot resume in .* another spec"):
+        run_batch(other, work, workers=1, resume=True, features=False)
+    rows3 = run_batch(other, work, workers=1, features=False, progress=lambda d, t: calls.append((d, t)))
     assert calls[0] == (0, 6) and [r["sha256"] for r in rows3] != [r["sha256"] for r in rows]
     assert (work / "audio" / "mine.wav").read_bytes() == b"not ours"
     assert parse_spec((work / "spec.toml").read_text()) == parse_spec(spec_toml(other))

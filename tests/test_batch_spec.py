@@ -286,14 +286,21 @@ def test_an_item_the_model_refuses_is_a_row_with_its_reason_and_no_file(tmp_path
         assert [m["file_name"] for m in csv.DictReader(f)] == ["audio/00000001.wav"]
 
 
-def test_resume_redoes_items_of_another_spec(small_runs, tmp_path):
+def test_resume_refuses_a_folder_of_another_spec_and_touches_nothing(small_runs, tmp_path):
     _, one, _, _ = small_runs
-    other = parse_spec(SMALL.replace("seed = 3", "seed = 4"), source="other.toml")
+    other = parse_spec(SMALL.replace("seed = 3", "seed = 4").replace("grid = [60, 200]", "grid = [60, 100]"),
+                       source="other.toml")
     work = tmp_path / "w"
     for name, data in _tree(one).items():
         (work / name).parent.mkdir(parents=True, exist_ok=True)
         (work / name).write_bytes(data)
-    rows = run_batch(other, work, resume=True, features=False)
+    with pytest.raises(BatchSpecError) as info:
+        run_batch(other, work, resume=True, features=False)
+    assert str(info.value) == (f"other.toml: cannot resume in {work}: it holds the batch of another spec (its seed, "
+                               "vary differ); allowed: the same spec (its count may change), or a run without "
+                               "--resume, which replaces that batch")
+    assert _tree(work) == _tree(one)
+    rows = run_batch(other, work, features=False)  # without --resume: replaced
     assert [r["seed"] for r in rows] == [str(it.seed) for it in make_items(other)]
     assert all(r["sha256"] == file_sha256(work / r["file"]) for r in rows)
     assert read_manifest(work / MANIFEST)[0]["sha256"] != read_manifest(one / MANIFEST)[0]["sha256"]

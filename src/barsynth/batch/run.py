@@ -41,7 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import BarsynthError
+from ..checks import show_text
+from ..errors import BarsynthError, BatchSpecError
 from .items import Item, base_parameters, designed_item, item_seed
 from .spec import BatchSpec, parse_spec, spec_toml
 
@@ -175,6 +176,8 @@ def run_batch(spec: BatchSpec, out_dir: Any, *, workers: int = 1, resume: bool =
     ``if __name__ == "__main__":`` (``barsynth batch`` and notebooks need nothing).
     """
     out = Path(out_dir)
+    if resume:
+        _check_same_spec(spec, out)
     earlier = (out / SPEC_COPY).is_file() or (out / MANIFEST).is_file()  # (a batch's folder: its files are ours)
     (out / AUDIO_DIR).mkdir(parents=True, exist_ok=True)
     rows: dict[int, dict[str, str]] = dict(_kept(spec, out)) if resume else {}
@@ -294,8 +297,9 @@ def file_sha256(path: Any) -> str | None:
 
 def _kept(spec: BatchSpec, out: Path) -> Iterator[tuple[int, dict[str, str]]]:
     """The ``(index, row)`` pairs of the folder's manifest that a resume keeps: none unless the
-    folder holds the same spec (its count aside); then each row of an item of ``spec`` with the
-    item's seed and file, no error, and a file whose SHA-256 is the row's."""
+    folder holds the same spec (its count aside; another is refused by :func:`_check_same_spec`);
+    then each row of an item of ``spec`` with the item's seed and file, no error, and a file
+    whose SHA-256 is the row's."""
     old_spec = _stored_spec(out, source=spec.source)
     if old_spec is None or replace(old_spec, count=spec.count) != spec:
         return
@@ -306,6 +310,19 @@ def _kept(spec: BatchSpec, out: Path) -> Iterator[tuple[int, dict[str, str]]]:
             continue
         if file_sha256(out / row["file"]) == row["sha256"]:
             yield index, row
+
+
+def _check_same_spec(spec: BatchSpec, out: Path) -> None:
+    """Refuse (one line) to resume in a folder that holds another spec's batch: resuming would
+    replace every item of it; only a run without ``resume`` may do that."""
+    old = _stored_spec(out, source=spec.source)
+    if old is None or replace(old, count=spec.count) == spec:
+        return
+    differ = [name for name in ("model", "preset", "seed", "sample_rate", "duration_s", "format", "vary")
+              if getattr(old, name) != getattr(spec, name)]
+    raise BatchSpecError(f"{spec.source}: cannot resume in {show_text(str(out))}: it holds the batch of another "
+                         f"spec (its {', '.join(differ)} differ); allowed: the same spec (its count may change), "
+                         "or a run without --resume, which replaces that batch")
 
 
 def _stored_spec(out: Path, source: str = "<spec>") -> BatchSpec | None:

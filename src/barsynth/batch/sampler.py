@@ -68,7 +68,7 @@ def draw_settings(model: Any, rng: np.random.Generator, *, base: Any = None,
         spread = {name: float(spread) for name in chosen}
     changes: dict[str, Any] = {}
     for p in rows:
-        u = rng.random()  # one number per row, always: a row's draw never shifts the next one's
+        u = rng.random()  # one number per row, always (a mutated choice or bool takes a second one)
         if p.name not in chosen:
             continue
         if spread is None:

@@ -63,7 +63,7 @@ __all__ = ["KINDS", "MAX_COUNT", "BatchSpec", "Variation", "load_spec", "parse_s
 
 KINDS = ("grid", "list", "random", "mutate")
 FORMATS = ("wav", "flac")
-MAX_COUNT = 100_000_000
+MAX_COUNT = 1_000_000  # the manifest is held in memory and rewritten as items finish (docs/batch.md)
 MAX_SEED = 2**63 - 1
 _TOP_KEYS = ("model", "preset", "count", "seed", "sample_rate", "duration_s", "format", "vary")
 
