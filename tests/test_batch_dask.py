@@ -237,7 +237,8 @@ def test_ctrl_c_on_the_client_cancels_the_clusters_work(cluster, tmp_path):
     env = dict(os.environ, PYTHONPATH=str(SRC))
     proc = subprocess.Popen([sys.executable, "-m", "barsynth", "batch", str(spec_path), "-o", str(out),
                              "--dask-scheduler", cluster.scheduler.address],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, start_new_session=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))  # (as in a background job)
     try:
         for _ in range(1200):  # until a few items are written (at most 60 s)
             if (out / AUDIO_DIR).is_dir() and len(os.listdir(out / AUDIO_DIR)) >= 40:

@@ -340,6 +340,13 @@ def test_a_bad_spec_exits_2_in_one_line_and_writes_nothing(tmp_path, text, words
     assert not (tmp_path / "out").exists()
 
 
+def _ignore_sigint():
+    """As a shell starts a job in the background: SIGINT ignored (the command must still stop on it)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 @pytest.mark.parametrize("whom", ["group", "command"])
 def test_ctrl_c_stops_the_pool_and_leaves_no_partial_file(tmp_path, whom):
     """The command interrupted mid-batch: status 130 in one line, no temporary file, and every
@@ -358,7 +365,7 @@ def test_ctrl_c_stops_the_pool_and_leaves_no_partial_file(tmp_path, whom):
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
     proc = subprocess.Popen([sys.executable, "-m", "barsynth", "batch", str(spec_path), "-o", str(out),
                              "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_ignore_sigint)
     try:
         for _ in range(1200):  # until a few chunks of items are written (at most 60 s)
             if (out / "audio").is_dir() and len(os.listdir(out / "audio")) >= 50:

@@ -1560,8 +1560,16 @@ def batch(spec_path, out_dir, workers, resume, scheduler):
                 kept.append(done)
             progress(done, total)
 
-        rows = run_batch(spec, out_dir, workers=workers or os.cpu_count() or 1, resume=resume, spec_text=text,
-                         progress=watch, scheduler=client)
+        import signal
+
+        # Ctrl-C or kill -INT stops a batch as it stops a render, even where the shell that
+        # started it in the background left SIGINT ignored (Python then installs no handler)
+        previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+        try:
+            rows = run_batch(spec, out_dir, workers=workers or os.cpu_count() or 1, resume=resume, spec_text=text,
+                             progress=watch, scheduler=client)
+        finally:
+            signal.signal(signal.SIGINT, previous)
     refused = sum(1 for row in rows if row["error"])
     redrawn = sum(int(row["rejected"]) for row in rows)
     notes = [f"{kept[0]} kept"] if resume and kept else []
