@@ -58,6 +58,7 @@ from typing import Any
 from ..checks import show_text, show_value
 from ..errors import BarsynthError, BatchSpecError
 from ..parameters import BOOL, CHOICE, FLOATS, Parameter
+from ..studio.presets_file import toml_value
 
 __all__ = ["KINDS", "MAX_COUNT", "BatchSpec", "Variation", "load_spec", "parse_spec", "spec_toml"]
 
@@ -142,26 +143,15 @@ def spec_toml(spec: BatchSpec) -> str:
     >>> parse_spec(spec_toml(spec)) == spec
     True
     """
-    lines = [f"model = {_toml(spec.model)}"]
+    lines = [f"model = {toml_value(spec.model)}"]
     if spec.preset is not None:
-        lines.append(f"preset = {_toml(spec.preset)}")
-    lines += [f"{key} = {_toml(getattr(spec, key))}" for key in ("count", "seed", "sample_rate", "duration_s", "format")]
+        lines.append(f"preset = {toml_value(spec.preset)}")
+    lines += [f"{key} = {toml_value(getattr(spec, key))}" for key in ("count", "seed", "sample_rate", "duration_s", "format")]
     for v in spec.vary:
         value = {"grid": v.values, "list": v.values, "mutate": v.spread}[v.kind] if v.kind != "random" \
             else (v.values if v.bounds is None else v.bounds)
-        lines += ["", f"[vary.{v.name}]", f"{v.kind} = {_toml(value)}"]
+        lines += ["", f"[vary.{v.name}]", f"{v.kind} = {toml_value(value)}"]
     return "\n".join(lines) + "\n"
-
-
-def _toml(value: Any) -> str:
-    """One TOML value: text, bool, whole number, float (``repr``: read back exactly) or array."""
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (tuple, list)):
-        return "[" + ", ".join(_toml(v) for v in value) + "]"
-    return repr(value)
 
 
 class _Reader:

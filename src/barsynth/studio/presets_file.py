@@ -7,7 +7,8 @@ import math
 from typing import Any
 
 
-def _value(value: Any) -> str:
+def toml_value(value: Any) -> str:
+    """One TOML value: bool, whole number, finite float (``repr``: read back exactly), array or basic string."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):
@@ -17,7 +18,7 @@ def _value(value: Any) -> str:
             raise ValueError(f"{value!r} cannot be written to a preset")
         return repr(value)
     if isinstance(value, (tuple, list)):
-        return "[" + ", ".join(_value(v) for v in value) + "]"
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
     return json.dumps(str(value), ensure_ascii=False).replace("\x7f", "\\u007f")  # a TOML basic string (no DEL)
 
 
@@ -38,9 +39,9 @@ def preset_toml(parameters: dict[str, Any], *, description: str, source: str = "
     mode_ratios = [1.0, 4.0]
     shape = "bar"
     """
-    lines = ["[preset]", f"description = {_value(description)}", f"source = {_value(source)}"]
+    lines = ["[preset]", f"description = {toml_value(description)}", f"source = {toml_value(source)}"]
     if model is not None:
-        lines.append(f"model = {_value(model)}")
+        lines.append(f"model = {toml_value(model)}")
     lines += ["", "[parameters]"]
-    lines += [f"{name} = {_value(value)}" for name, value in parameters.items()]
+    lines += [f"{name} = {toml_value(value)}" for name, value in parameters.items()]
     return "\n".join(lines) + "\n"
